@@ -1,0 +1,1 @@
+"""Baseline agents: schedules, estimator-policies, optimal design, RL."""

@@ -1,0 +1,1 @@
+"""The mismatch tool: locate, name and model physics a simulation leaves out."""

@@ -1,0 +1,1 @@
+"""Gymnasium environments and wrappers (uses physics and estimation)."""

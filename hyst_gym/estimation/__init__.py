@@ -1,0 +1,1 @@
+"""Adaptive estimators, min-max covers and persistent-excitation diagnostics (uses physics)."""
