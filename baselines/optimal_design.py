@@ -1,0 +1,97 @@
+"""Open-loop optimal input design: a multisine H(t) that maximizes Fisher information about a.
+
+Parameterization: ``H(t) = s * sum_k A_k sin(2*pi*k*t/period + phi_k)``, k = 1..n, with
+amplitudes ``A_k = |x_k|`` and phases ``phi_k = pi*x_{n+k}``; the sum is scaled by
+``s`` so that its peak is at most ``field_max`` and then passed through the common slew
+limit (:func:`~baselines.schedules.apply_limits`), so the design obeys the same limits
+as every other agent. The period repeats over the episode.
+
+Criterion (issue 5, "Agents" 3): the log Fisher information ``log I(a)``
+(:mod:`baselines.information`) of one period
+
+* at the nominal a (``a_values=[7012]``, a locally D-optimal design), or
+* averaged over the temperature prior (``a_values`` = a(T) at prior quantiles: the
+  ED-optimal / robust design of Pronzato & Walter, maximizing ``E_a[log I(a)]``).
+
+Optimizer: CMA-ES (pycma) with a fixed seed, so the design is reproducible.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field as dataclass_field
+
+import numpy as np
+
+from hyst_gym.physics import HysteresisParams
+
+from .information import FirstOrderPlant, fisher_information
+from .schedules import ExcitationLimits, Schedule, apply_limits
+
+
+@dataclass(frozen=True)
+class MultisineDesign(Schedule):
+    """A designed multisine (see module doc). ``coefficients`` has length ``2*n``."""
+
+    coefficients: tuple = (1.0, 0.0)
+    period: float = 6.0
+    field_max: float = 1.2e5
+    name = "optimal_design"
+
+    @property
+    def n_harmonics(self) -> int:
+        return len(self.coefficients) // 2
+
+    def _raw(self, time):
+        x = np.asarray(self.coefficients, dtype=np.float64)
+        n = self.n_harmonics
+        k = np.arange(1, n + 1)
+        amplitudes, phases = np.abs(x[:n]), np.pi * x[n:]
+        return (amplitudes * np.sin(2 * np.pi * np.multiply.outer(time, k) / self.period + phases)).sum(-1)
+
+    def field(self, time):
+        time = np.asarray(time, dtype=np.float64)
+        grid = np.linspace(0.0, self.period, 2049)
+        peak = max(np.max(np.abs(self._raw(grid))), 1e-12)
+        return self.field_max * self._raw(time) / peak
+
+
+@dataclass(frozen=True)
+class DesignResult:
+    design: MultisineDesign
+    log_information: float
+    evaluations: int
+    history: tuple = dataclass_field(default=())
+
+
+def design_input(limits: ExcitationLimits, a_values=(7012.0,), period: float = 6.0, n_harmonics: int = 6,
+                 params: HysteresisParams = HysteresisParams(), plant: FirstOrderPlant = FirstOrderPlant(),
+                 max_evaluations: int = 400, seed: int = 0) -> DesignResult:
+    """Run CMA-ES on the multisine coefficients; return the best design found.
+
+    ``a_values`` (A/m): the nominal a, or quantiles of the temperature prior of a.
+    """
+    import cma
+
+    a_values = np.atleast_1d(np.asarray(a_values, dtype=np.float64))
+    n_steps = int(round(period / limits.dt))
+
+    def loss(x):
+        design = MultisineDesign(tuple(float(v) for v in x), period, limits.field_max)
+        field = apply_limits(design.field(limits.dt * np.arange(1, n_steps + 1)), limits)
+        information = fisher_information(field, limits.dt, a_values, params, plant)
+        return -float(np.mean(np.log(information + 1e-300)))
+
+    rng = np.random.default_rng(seed)
+    x0 = np.concatenate([np.full(n_harmonics, 0.5), rng.uniform(-1, 1, n_harmonics)])
+    options = {"seed": int(seed) + 1, "maxfevals": int(max_evaluations), "verbose": -9, "bounds": [-2, 2]}
+    strategy = cma.CMAEvolutionStrategy(x0, 0.5, options)
+    history = []
+    while not strategy.stop():
+        candidates = strategy.ask()
+        strategy.tell(candidates, [loss(c) for c in candidates])
+        history.append(-float(strategy.result.fbest))
+    best = MultisineDesign(tuple(float(v) for v in strategy.result.xbest), period, limits.field_max)
+    return DesignResult(best, -float(strategy.result.fbest), int(strategy.result.evaluations), tuple(history))
+
+
+__all__ = ["MultisineDesign", "DesignResult", "design_input"]
