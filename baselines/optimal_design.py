@@ -1,9 +1,10 @@
 """Open-loop optimal input design: a multisine H(t) that maximizes Fisher information about a.
 
-Parameterization: ``H(t) = s * sum_k A_k sin(2*pi*k*t/period + phi_k)``, k = 1..n, with
-amplitudes ``A_k = |x_k|`` and phases ``phi_k = pi*x_{n+k}``; the sum is scaled by
-``s`` so that its peak is at most ``field_max`` and then passed through the common slew
-limit (:func:`~baselines.schedules.apply_limits`), so the design obeys the same limits
+Parameterization: ``H(t) = H0 + s * sum_k A_k sin(2*pi*k*t/period + phi_k)``, k = 1..n,
+with a bias ``H0 = field_max*tanh(x_0)``, amplitudes ``A_k = |x_k|`` and phases
+``phi_k = pi*x_{n+k}``; the sum is scaled by ``s`` so that the peak of ``|H|`` is at most
+``field_max`` (a bias lets the design dwell where M is most sensitive to a, which a
+zero-mean multisine cannot). The field is then passed through the common slew limit (:func:`~baselines.schedules.apply_limits`), so the design obeys the same limits
 as every other agent. The period repeats over the episode.
 
 Criterion (issue 5, "Agents" 3): the log Fisher information ``log I(a)``
@@ -30,19 +31,19 @@ from .schedules import ExcitationLimits, Schedule, apply_limits
 
 @dataclass(frozen=True)
 class MultisineDesign(Schedule):
-    """A designed multisine (see module doc). ``coefficients`` has length ``2*n``."""
+    """A designed multisine (see module doc). ``coefficients`` has length ``2*n + 1``."""
 
-    coefficients: tuple = (1.0, 0.0)
+    coefficients: tuple = (0.0, 1.0, 0.0)
     period: float = 6.0
     field_max: float = 1.2e5
     name = "optimal_design"
 
     @property
     def n_harmonics(self) -> int:
-        return len(self.coefficients) // 2
+        return (len(self.coefficients) - 1) // 2
 
     def _raw(self, time):
-        x = np.asarray(self.coefficients, dtype=np.float64)
+        x = np.asarray(self.coefficients, dtype=np.float64)[1:]
         n = self.n_harmonics
         k = np.arange(1, n + 1)
         amplitudes, phases = np.abs(x[:n]), np.pi * x[n:]
@@ -52,7 +53,8 @@ class MultisineDesign(Schedule):
         time = np.asarray(time, dtype=np.float64)
         grid = np.linspace(0.0, self.period, 2049)
         peak = max(np.max(np.abs(self._raw(grid))), 1e-12)
-        return self.field_max * self._raw(time) / peak
+        bias = np.tanh(self.coefficients[0])
+        return self.field_max * (bias + (1 - abs(bias)) * self._raw(time) / peak)
 
 
 @dataclass(frozen=True)
@@ -82,7 +84,7 @@ def design_input(limits: ExcitationLimits, a_values=(7012.0,), period: float = 6
         return -float(np.mean(np.log(information + 1e-300)))
 
     rng = np.random.default_rng(seed)
-    x0 = np.concatenate([np.full(n_harmonics, 0.5), rng.uniform(-1, 1, n_harmonics)])
+    x0 = np.concatenate([[0.0], np.full(n_harmonics, 0.5), rng.uniform(-1, 1, n_harmonics)])
     options = {"seed": int(seed) + 1, "maxfevals": int(max_evaluations), "verbose": -9, "bounds": [-2, 2]}
     strategy = cma.CMAEvolutionStrategy(x0, 0.5, options)
     history = []
