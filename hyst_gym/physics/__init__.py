@@ -7,9 +7,17 @@ from .anhysteretic import (ANHYSTERETIC_KINDS, ISING, LANGEVIN, anhysteretic_kin
                            anhysteretic_magnetization)
 from .hysteresis import (DEFAULT_MAX_FIELD_STEP, HysteresisBatch, HysteresisParams, advance_each,
                          advance_shared, simulate_batch, simulate_magnetization, simulate_shared)
+from .fem import FEMRod, analytic_frequencies
+from .linear_system import DiscreteTransducer
+from .thermal import ThermalParams, a_of_temperature, advance_temperature, temperature_of_a
+from .transducers import (DEFAULT_BIAS_MAGNETIZATION, FirstOrderPlant, LumpedLinear, LumpedNonlinear,
+                          RodParams)
 
 __all__ = [
     "ANHYSTERETIC_KINDS", "ISING", "LANGEVIN", "anhysteretic_kind", "anhysteretic_magnetization",
     "DEFAULT_MAX_FIELD_STEP", "HysteresisBatch", "HysteresisParams", "advance_each", "advance_shared",
     "simulate_batch", "simulate_magnetization", "simulate_shared",
+    "DEFAULT_BIAS_MAGNETIZATION", "DiscreteTransducer", "FEMRod", "FirstOrderPlant", "LumpedLinear",
+    "LumpedNonlinear", "RodParams", "analytic_frequencies",
+    "ThermalParams", "a_of_temperature", "advance_temperature", "temperature_of_a",
 ]
