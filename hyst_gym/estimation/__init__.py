@@ -1,1 +1,29 @@
-"""Adaptive estimators, min-max covers and persistent-excitation diagnostics (uses physics)."""
+"""Adaptive estimators, min-max covers and persistent-excitation diagnostics (uses physics).
+
+Public API
+----------
+:class:`EstimatorConfig`, :class:`FirstOrderPlant`, :class:`LumpedPlant`
+    frozen, validated settings;
+:class:`MinMaxEstimator` (14)-(15) / (24)-(25), :class:`GradientEstimator`,
+:class:`MultipleModelEstimator`, :func:`make_estimator`
+    batched estimators sharing ``reset`` / ``update(field, measured_output, dt)``;
+:class:`ModelBank`
+    the E x G hysteresis bank;
+:func:`minmax_solution`, :func:`envelopes`
+    the closed-form min-max;
+:class:`PEMonitor`
+    windowed test of the excitation conditions 3.1(a)/(b).
+"""
+
+from .bank import ModelBank
+from .config import EstimatorConfig, FirstOrderPlant, LumpedPlant
+from .estimators import (ESTIMATORS, AdaptiveEstimator, GradientEstimator, MinMaxEstimator,
+                         MultipleModelEstimator, hold_matrices, make_estimator)
+from .minmax import envelopes, minmax_solution
+from .pe import PEMonitor
+
+__all__ = [
+    "AdaptiveEstimator", "ESTIMATORS", "EstimatorConfig", "FirstOrderPlant", "GradientEstimator", "LumpedPlant",
+    "MinMaxEstimator", "ModelBank", "MultipleModelEstimator", "PEMonitor", "envelopes", "hold_matrices",
+    "make_estimator", "minmax_solution",
+]

@@ -1,0 +1,198 @@
+"""Compiled inner loops of the estimators: bank advance, interpolation, min-max covers.
+
+All kernels work on a batch of E independent systems; the bank of each system holds
+G hysteresis models on the same grid over Theta. ``cache=True`` everywhere so the
+compilation cost is paid once per machine.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..physics.hysteresis import advance_shared
+
+
+@njit(cache=True)
+def advance_bank(magnetization, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step):
+    """Move each system's bank (row of ``magnetization``, shape (E, G)) along its own field.
+
+    Row ``e`` goes from ``field_from[e]`` to ``field_to[e]`` (A/m) through the physics
+    kernel :func:`advance_shared`, so a bank node equals a single-model run bit for bit.
+    Returns the number of model substeps taken.
+    """
+    total = 0
+    G = magnetization.shape[1]
+    for e in range(magnetization.shape[0]):
+        total += G * advance_shared(magnetization[e], field_from[e], field_to[e],
+                                    a, k, alpha, Ms, c, kind, max_field_step)
+    return total
+
+
+@njit(cache=True, inline="always")
+def _locate(grid, theta):
+    """Index j of the interval [grid[j], grid[j+1]) holding theta (clamped to the ends)."""
+    G = grid.shape[0]
+    h = (grid[G - 1] - grid[0]) / (G - 1)
+    j = int((theta - grid[0]) / h)
+    if j < 0:
+        j = 0
+    if j > G - 2:
+        j = G - 2
+    # Rounding in (theta - grid[0])/h may land one interval off; fix it on the grid itself.
+    while j > 0 and theta < grid[j]:
+        j -= 1
+    while j < G - 2 and theta >= grid[j + 1]:
+        j += 1
+    return j
+
+
+@njit(cache=True, inline="always")
+def _node_slope(values, grid, j):
+    """Finite-difference slope at node j: centred inside, 2nd-order one-sided at the ends."""
+    G = grid.shape[0]
+    if j == 0:
+        return (-3.0 * values[0] + 4.0 * values[1] - values[2]) / (grid[2] - grid[0])
+    if j == G - 1:
+        return (3.0 * values[G - 1] - 4.0 * values[G - 2] + values[G - 3]) / (grid[G - 1] - grid[G - 3])
+    return (values[j + 1] - values[j - 1]) / (grid[j + 1] - grid[j - 1])
+
+
+@njit(cache=True)
+def interpolate_bank(grid, values, theta, out_value, out_slope, out_curvature):
+    """Cubic Hermite interpolation of each row of ``values`` (E, G) at ``theta`` (E,).
+
+    Node slopes are finite differences, so the interpolant is C1 and exact at the nodes
+    (at a node the node value itself is returned, bit for bit). Writes f, df/dtheta and
+    d2f/dtheta2 (the latter piecewise linear) into the three output arrays (E,).
+    """
+    for e in range(values.shape[0]):
+        row = values[e]
+        t = theta[e]
+        j = _locate(grid, t)
+        h = grid[j + 1] - grid[j]
+        m0 = _node_slope(row, grid, j) * h
+        m1 = _node_slope(row, grid, j + 1) * h
+        f0 = row[j]
+        f1 = row[j + 1]
+        if t == grid[j]:
+            out_value[e] = f0
+            out_slope[e] = m0 / h
+            out_curvature[e] = (-6.0 * f0 - 4.0 * m0 + 6.0 * f1 - 2.0 * m1) / (h * h)
+            continue
+        if t == grid[j + 1]:
+            out_value[e] = f1
+            out_slope[e] = m1 / h
+            out_curvature[e] = (6.0 * f0 + 2.0 * m0 - 6.0 * f1 + 4.0 * m1) / (h * h)
+            continue
+        u = (t - grid[j]) / h
+        u2 = u * u
+        u3 = u2 * u
+        out_value[e] = ((2.0 * u3 - 3.0 * u2 + 1.0) * f0 + (u3 - 2.0 * u2 + u) * m0
+                        + (-2.0 * u3 + 3.0 * u2) * f1 + (u3 - u2) * m1)
+        out_slope[e] = ((6.0 * u2 - 6.0 * u) * f0 + (3.0 * u2 - 4.0 * u + 1.0) * m0
+                        + (-6.0 * u2 + 6.0 * u) * f1 + (3.0 * u2 - 2.0 * u) * m1) / h
+        out_curvature[e] = ((12.0 * u - 6.0) * f0 + (6.0 * u - 4.0) * m0
+                            + (-12.0 * u + 6.0) * f1 + (6.0 * u - 2.0) * m1) / (h * h)
+
+
+@njit(cache=True)
+def _lower_hull(xs, ys, n, hull):
+    """Andrew's monotone chain on sorted xs[:n]: indices of the lower convex hull.
+
+    Collinear middle points are dropped. Returns the number of hull vertices.
+    """
+    m = 0
+    for i in range(n):
+        while m >= 2:
+            o = hull[m - 2]
+            p = hull[m - 1]
+            cross = (xs[p] - xs[o]) * (ys[i] - ys[o]) - (ys[p] - ys[o]) * (xs[i] - xs[o])
+            if cross <= 0.0:
+                m -= 1
+            else:
+                break
+        hull[m] = i
+        m += 1
+    return m
+
+
+@njit(cache=True)
+def minmax_one(grid, g, theta_hat, sign, gradient, xs, ys, hull):
+    """Closed-form solution (nu_star, phi_star) of the min-max problem (15) for one system.
+
+    ``g`` (G,) holds ``f(theta_i) - f(thetahat)`` on the grid, ``sign`` is sign(ytilde)
+    (+1 or -1), ``gradient`` is df/dtheta at thetahat. With ``h = sign*g`` and the point
+    (thetahat, 0) added, ``nu_star = -conv(h)(thetahat)`` and ``phi_star = sign*slope``
+    where slope is that of conv(h) at thetahat (GUIDE §3: conv(g) for sign +1, conc(g)
+    for sign -1). At a vertex of the envelope the gradient is clipped into the
+    subdifferential [left slope, right slope] (a valid subgradient; it *is* the gradient
+    where g is locally convex); at an end of Theta the missing side is unbounded.
+    ``xs``, ``ys``, ``hull`` are work arrays of length G + 1.
+    """
+    G = grid.shape[0]
+    n = 0
+    hat_index = -1
+    inserted = False
+    for i in range(G):
+        if not inserted and theta_hat <= grid[i]:
+            xs[n] = theta_hat
+            ys[n] = 0.0
+            hat_index = n
+            n += 1
+            inserted = True
+            if theta_hat == grid[i]:
+                continue  # the node coincides with thetahat: g is 0 there by construction
+        xs[n] = grid[i]
+        ys[n] = sign * g[i]
+        n += 1
+    if not inserted:
+        xs[n] = theta_hat
+        ys[n] = 0.0
+        hat_index = n
+        n += 1
+    m = _lower_hull(xs, ys, n, hull)
+    for v in range(m):
+        if hull[v] == hat_index:
+            lo = -np.inf
+            hi = np.inf
+            if v > 0:
+                p = hull[v - 1]
+                lo = (ys[hat_index] - ys[p]) / (xs[hat_index] - xs[p])
+            if v < m - 1:
+                q = hull[v + 1]
+                hi = (ys[q] - ys[hat_index]) / (xs[q] - xs[hat_index])
+            slope = sign * gradient
+            if slope < lo:
+                slope = lo
+            if slope > hi:
+                slope = hi
+            return 0.0, sign * slope
+    # thetahat lies strictly inside a hull edge (above the envelope, or collinear).
+    for v in range(m - 1):
+        p = hull[v]
+        q = hull[v + 1]
+        if xs[p] <= theta_hat and theta_hat <= xs[q]:
+            slope = (ys[q] - ys[p]) / (xs[q] - xs[p])
+            value = ys[p] + slope * (theta_hat - xs[p])
+            nu = -value
+            if nu < 0.0:
+                nu = 0.0
+            return nu, sign * slope
+    return 0.0, sign * gradient  # unreachable: the hull spans [xs[0], xs[n-1]]
+
+
+@njit(cache=True)
+def minmax_batch(grid, values, theta_hat, value_hat, gradient, sign, out_nu, out_phi):
+    """:func:`minmax_one` for every system: ``values`` (E, G), the rest (E,)."""
+    G = grid.shape[0]
+    xs = np.empty(G + 1)
+    ys = np.empty(G + 1)
+    hull = np.empty(G + 1, dtype=np.int64)
+    g = np.empty(G)
+    for e in range(values.shape[0]):
+        for i in range(G):
+            g[i] = values[e, i] - value_hat[e]
+        nu, phi = minmax_one(grid, g, theta_hat[e], sign[e], gradient[e], xs, ys, hull)
+        out_nu[e] = nu
+        out_phi[e] = phi
