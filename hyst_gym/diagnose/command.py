@@ -1,0 +1,39 @@
+"""``hyst-gym diagnose RECORDING.csv``: find which physics a recording shows that the model lacks."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .core import diagnose
+from .model import TRANSDUCERS
+from .report import write_json, write_plots
+
+
+def configure_parser(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("recording", type=Path, help="recording CSV (GUIDE §6), optional sidecar .json beside it")
+    parser.add_argument("--model", default="lumped", choices=[t for t in TRANSDUCERS if t != "none"],
+                        help="base transducer model for a displacement channel (default lumped, eq. 13)")
+    parser.add_argument("--anhysteretic", default="ising", choices=("ising", "langevin"),
+                        help="base anhysteretic curve (default ising, eq. 2)")
+    parser.add_argument("--fix-mechanics", action="store_true",
+                        help="fix the lumped coefficients chat, khat at the paper's values instead of fitting them")
+    parser.add_argument("--holdout", type=float, default=0.3, help="fraction held out at the end (default 0.3)")
+    parser.add_argument("--json", type=Path, help="write the machine-readable report here")
+    parser.add_argument("--plots", type=Path, help="write PNG plots into this folder")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def main(args) -> int:
+    report = diagnose(args.recording, model=args.model, anhysteretic=args.anhysteretic,
+                      fit_mechanics=not args.fix_mechanics, holdout=args.holdout, progress=not args.quiet)
+    print(f"verdict: {report.verdict} (confidence {report.confidence:.2f}, held-out RMSE "
+          f"{report.baseline_heldout:.3g} -> "
+          f"{report.chosen.heldout_rmse if report.chosen else report.baseline_heldout:.3g} noise units)")
+    print(report.explanation)
+    if args.json:
+        print(f"report: {write_json(report, args.json)}")
+    if args.plots:
+        for path in write_plots(report, args.plots):
+            print(f"plot: {path}")
+    return 0

@@ -1,0 +1,178 @@
+"""Fitting: global search, then bounded local least squares, with uncertainties.
+
+Residuals are per channel, divided by that channel's noise level (so a perfect fit has
+residuals of unit variance), concatenated over the samples of a mask (the fitting block).
+The Jacobian is by forward differences in the fitted coordinates; all perturbed parameter
+sets that change the magnetization are simulated as one bank in one compiled call
+(:func:`hyst_gym.diagnose.kernels.simulate_members`), the others reuse it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.optimize
+from scipy.stats import qmc
+
+from .model import Model
+
+MAGNETIC = {"a", "k", "rho", "Ms", "c", "H0", "k_e", "heating", "tau_th"}
+
+
+@dataclass
+class FitResult:
+    """Outcome of one fit: the model at its optimum and the statistics of the fit."""
+
+    model: Model
+    values: dict
+    uncertainties: dict          # name -> 1-sigma (physical units); free parameters only
+    sse: float                   # sum of squared normalized residuals on the fitting block
+    n_residuals: int
+    n_free: int
+    evaluations: int
+
+    @property
+    def bic(self) -> float:
+        """Bayesian information criterion ``n*ln(SSE/n) + p*ln(n)`` on the fitting block."""
+        n = self.n_residuals
+        return float(n * np.log(max(self.sse, 1e-300) / n) + self.n_free * np.log(n))
+
+
+class Objective:
+    """Normalized residuals of ``model`` against the recording on the samples of ``mask``."""
+
+    def __init__(self, model: Model, weights: dict, mask: np.ndarray):
+        self.model = model
+        self.weights = weights
+        self.mask = mask
+        self.data = {ch: model.recording.output(ch) for ch in model.channels}
+        self.evaluations = 0
+
+    def residual_of(self, predicted: dict, mask=None) -> np.ndarray:
+        mask = self.mask if mask is None else mask
+        return np.concatenate([(predicted[ch][mask] - self.data[ch][mask]) / self.weights[ch]
+                               for ch in self.model.channels])
+
+    def residuals_many(self, values_list, mask=None) -> list[np.ndarray]:
+        magnetization = self.model.magnetization(values_list)
+        self.evaluations += len(values_list)
+        return [self.residual_of(self.model.predict(v, magnetization[:, i]), mask)
+                for i, v in enumerate(values_list)]
+
+    def __call__(self, x):
+        r = self.residuals_many([self.model.values_from_x(x)])[0]
+        return np.nan_to_num(r, nan=1e6, posinf=1e6, neginf=-1e6)
+
+    def jacobian(self, x):
+        names = self.model.free_names
+        lower = np.array([self.model.parameters[n].x_bounds[0] for n in names])
+        upper = np.array([self.model.parameters[n].x_bounds[1] for n in names])
+        steps = 1e-5 * np.maximum(1.0, np.abs(x))
+        flip = x + steps > upper
+        steps[flip] *= -1.0
+        values = [self.model.values_from_x(x)]
+        for i in range(len(x)):
+            xi = x.copy()
+            xi[i] = np.clip(xi[i] + steps[i], lower[i], upper[i]) if not flip[i] else max(xi[i] + steps[i], lower[i])
+            values.append(self.model.values_from_x(xi))
+        res = self.residuals_many(values)
+        base = res[0]
+        J = np.empty((base.size, len(x)))
+        for i in range(len(x)):
+            J[:, i] = (res[i + 1] - base) / steps[i]
+        return np.nan_to_num(J)
+
+
+def local_fit(model: Model, weights: dict, mask, start: dict | None = None, max_nfev: int = 60) -> FitResult:
+    """Bounded trust-region least squares from ``start`` (default: the model's values)."""
+    objective = Objective(model, weights, mask)
+    names = model.free_names
+    values = model.values() if start is None else {**model.values(), **start}
+    lower = np.array([model.parameters[n].x_bounds[0] for n in names])
+    upper = np.array([model.parameters[n].x_bounds[1] for n in names])
+    x0 = np.clip(model.x_from_values(values), lower, upper)
+    # keep strictly inside the box (trf requires it); a parameter at 0 with lower bound 0 stays there
+    span = upper - lower
+    x0 = np.clip(x0, lower + 1e-9 * span, upper - 1e-9 * span)
+    if names:
+        result = scipy.optimize.least_squares(objective, x0, jac=objective.jacobian, bounds=(lower, upper),
+                                              method="trf", x_scale="jac", max_nfev=max_nfev,
+                                              xtol=1e-8, ftol=1e-8)
+        x, residual, J = result.x, result.fun, result.jac
+    else:
+        x, residual, J = x0, objective(x0), np.zeros((objective(x0).size, 0))
+    fitted = model.values_from_x(x)
+    sse = float(residual @ residual)
+    uncertainties = _uncertainties(model, names, x, J, sse, residual.size)
+    return FitResult(model.with_values(fitted), fitted, uncertainties, sse, residual.size, len(names),
+                     objective.evaluations)
+
+
+def _uncertainties(model, names, x, J, sse, n):
+    if not names:
+        return {}
+    dof = max(n - len(names), 1)
+    try:
+        cov = np.linalg.pinv(J.T @ J) * (sse / dof)
+    except np.linalg.LinAlgError:
+        return {name: float("nan") for name in names}
+    out = {}
+    for i, name in enumerate(names):
+        p = model.parameters[name]
+        sigma_x = float(np.sqrt(max(cov[i, i], 0.0)))
+        out[name] = sigma_x * (p.from_x(x[i]) if p.log else p.scale)
+    return out
+
+
+def global_search(model: Model, weights: dict, mask, names, n_points: int = 128, keep: int = 3,
+                  seed: int = 0, linear_outputs: tuple = ()) -> list[dict]:
+    """Score a scrambled Sobol design over the boxes of ``names``; return the ``keep`` best starts.
+
+    The other parameters stay at the model's values. Output parameters listed in
+    ``linear_outputs`` as ``(gain_name, offset_name)`` pairs for the displacement channel are
+    solved by linear least squares for each design point (the displacement is affine in
+    ``zetahat`` and ``zetahat*M0``), which makes the search insensitive to their start.
+    """
+    sampler = qmc.Sobol(d=len(names), scramble=True, seed=seed)
+    unit = sampler.random(n_points)
+    bounds = np.array([model.parameters[n].x_bounds for n in names])
+    xs = bounds[:, 0] + unit * (bounds[:, 1] - bounds[:, 0])
+    base = model.values()
+    candidates = []
+    for row in xs:
+        v = dict(base)
+        for n, xi in zip(names, row):
+            v[n] = model.parameters[n].from_x(xi)
+        candidates.append(v)
+    # Parameter sets that break the kernel's validity (alpha*c*Man' >= 1) are skipped.
+    candidates = [v for v in candidates if v["rho"] * v["c"] < 0.98]
+    objective = Objective(model, weights, mask)
+    magnetization = model.magnetization(candidates)
+    scored = []
+    for i, v in enumerate(candidates):
+        m = magnetization[:, i]
+        if linear_outputs and "displacement" in model.channels:
+            v = _solve_linear_outputs(model, v, m, weights, mask, linear_outputs)
+        r = objective.residual_of(model.predict(v, m))
+        scored.append((float(np.nan_to_num(r @ r, nan=np.inf)), v))
+    scored.sort(key=lambda item: item[0])
+    return [v for _, v in scored[:keep]]
+
+
+def _solve_linear_outputs(model, values, magnetization, weights, mask, pair):
+    gain_name, offset_name = pair
+    data = model.recording.displacement[mask]
+    trial = dict(values, **{gain_name: 1.0, offset_name: 0.0})
+    response = model.displacement(trial, magnetization)[mask]       # gain 1, M0 = 0
+    unit = model.displacement(dict(trial, **{offset_name: 1.0}), magnetization)[mask]
+    offset_response = response - unit                                 # response to +1 in gain*M0
+    design = np.column_stack([response, offset_response])
+    coef, *_ = np.linalg.lstsq(design, data, rcond=None)
+    gain = float(coef[0]) if abs(coef[0]) > 0 else 1e-30
+    out = dict(values)
+    out[gain_name] = float(np.clip(gain, model.parameters[gain_name].lower, model.parameters[gain_name].upper))
+    # displacement = gain*response - (gain*M0)*offset_response
+    out[offset_name] = float(np.clip(-coef[1] / gain, model.parameters[offset_name].lower,
+                                     model.parameters[offset_name].upper))
+    return out

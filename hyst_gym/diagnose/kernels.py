@@ -1,0 +1,198 @@
+"""Compiled forward kernels of the extended model the mismatch tool fits.
+
+The magnetic part is the domain-wall model (6) (slope from
+:func:`hyst_gym.physics.hysteresis.magnetization_slope`), driven in time with three
+optional extensions, each of which reduces exactly to the plain model when its
+parameter is zero:
+
+* ``field_bias``: the material sees ``H + H0`` (A/m);
+* ``eddy_current``: the material sees ``H_eff = H + H0 - k_e*dM/dt`` (k_e in s). Per
+  sample the effective-field increment solves the linearized implicit relation
+  ``dHe = (H_new + H0 - He_old)/(1 + k_e*chi/dt)`` with ``chi`` the secant
+  susceptibility (one predictor with the tangent, one corrector with the secant), which is
+  unconditionally stable (the denominator is >= 1 because chi >= 0);
+* ``thermal_drift``: a lumped coil temperature rise ``theta`` (K) obeys
+  ``theta' = q*H^2 - theta/tau`` (Joule heating ~ I^2 ~ H^2, eq. (11), GUIDE §4), integrated
+  exactly with H^2 held at its step mean, and ``a(T) = a*(T_amb + theta)/T_amb`` (4)
+  (a proportional to absolute temperature); optionally ``Ms(T) = Ms*(1 - beta*theta)``.
+
+Every model starts demagnetized (M = 0) at H = 0 and is first brought quasi-statically to
+the first recorded field, so that the first sample is on the virgin curve.
+
+Mechanical and sensor parts are linear time-invariant systems, integrated exactly for a
+forcing that is linear between samples (first-order hold), see :func:`lti_response`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.linalg
+from numba import njit
+
+from ..physics.hysteresis import magnetization_slope
+
+#: Columns of the per-member magnetic parameter matrix used by :func:`simulate_members`.
+MAGNETIC_COLUMNS = ("a", "k", "alpha", "Ms", "c", "H0", "k_e", "heating", "tau_th", "beta_Ms")
+AMBIENT_TEMPERATURE = 293.15  # K, reference temperature of the fitted a (eq. 4)
+
+
+@njit(cache=True)
+def _advance(m, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step):
+    change = field_to - field_from
+    if change == 0.0:
+        return m
+    n = int(math.ceil(abs(change) / max_field_step))
+    if n < 1:
+        n = 1
+    step = change / n
+    delta = 1.0 if change > 0.0 else -1.0
+    for s in range(n):
+        h = field_from + s * step
+        s0 = magnetization_slope(h, m, delta, a, k, alpha, Ms, c, kind)
+        s1 = magnetization_slope(h + 0.5 * step, m + 0.5 * step * s0, delta, a, k, alpha, Ms, c, kind)
+        m = m + step * s1
+    return m
+
+
+@njit(cache=True)
+def simulate_members(time, field, params, kind, max_field_step, ambient):
+    """Magnetization (A/m), shape ``(T, B)``, of ``B`` extended models under one field.
+
+    ``params`` has shape ``(B, 10)`` with the columns of :data:`MAGNETIC_COLUMNS`.
+    """
+    n_samples = time.shape[0]
+    n_members = params.shape[0]
+    out = np.empty((n_samples, n_members))
+    for b in range(n_members):
+        a0 = params[b, 0]
+        k = params[b, 1]
+        alpha = params[b, 2]
+        Ms0 = params[b, 3]
+        c = params[b, 4]
+        H0 = params[b, 5]
+        k_e = params[b, 6]
+        heating = params[b, 7]
+        tau = params[b, 8]
+        beta = params[b, 9]
+        m = _advance(0.0, 0.0, field[0] + H0, a0, k, alpha, Ms0, c, kind, max_field_step)
+        he = field[0] + H0
+        theta = 0.0
+        out[0, b] = m
+        a = a0
+        Ms = Ms0
+        for t in range(1, n_samples):
+            dt = time[t] - time[t - 1]
+            if heating != 0.0:
+                h_sq = (field[t - 1] * field[t - 1] + field[t - 1] * field[t] + field[t] * field[t]) / 3.0
+                decay = math.exp(-dt / tau)
+                theta = theta * decay + heating * h_sq * tau * (1.0 - decay)
+                a = a0 * (ambient + theta) / ambient
+                Ms = Ms0 * (1.0 - beta * theta)
+                if Ms < 1e-3 * Ms0:
+                    Ms = 1e-3 * Ms0
+            target = field[t] + H0
+            if k_e > 0.0:
+                gap = target - he
+                delta = 1.0 if gap > 0.0 else -1.0
+                chi = magnetization_slope(he, m, delta, a, k, alpha, Ms, c, kind)
+                d_he = gap / (1.0 + k_e * chi / dt)
+                m_new = _advance(m, he, he + d_he, a, k, alpha, Ms, c, kind, max_field_step)
+                if d_he != 0.0:
+                    chi = (m_new - m) / d_he
+                    if chi < 0.0:
+                        chi = 0.0
+                    d_he = gap / (1.0 + k_e * chi / dt)
+                    m_new = _advance(m, he, he + d_he, a, k, alpha, Ms, c, kind, max_field_step)
+                m = m_new
+                he = he + d_he
+            else:
+                m = _advance(m, he, target, a, k, alpha, Ms, c, kind, max_field_step)
+                he = target
+            out[t, b] = m
+    return out
+
+
+@njit(cache=True)
+def _step_lti(forcing, classes, phis, gamma0s, gamma1s, C, x0):
+    n = forcing.shape[0]
+    order = x0.shape[0]
+    out = np.empty(n)
+    x = x0.copy()
+    out[0] = 0.0
+    for i in range(order):
+        out[0] += C[i] * x[i]
+    for t in range(1, n):
+        j = classes[t - 1]
+        new = np.zeros(order)
+        for r in range(order):
+            acc = gamma0s[j, r] * forcing[t - 1] + gamma1s[j, r] * forcing[t]
+            for s in range(order):
+                acc += phis[j, r, s] * x[s]
+            new[r] = acc
+        x = new
+        y = 0.0
+        for i in range(order):
+            y += C[i] * x[i]
+        out[t] = y
+    return out
+
+
+def step_classes(time):
+    """Group the sample steps into classes of equal length (relative 1e-9); returns
+    ``(steps, class_index)``: the distinct step lengths (s) and, per step, its class."""
+    dt = np.diff(np.asarray(time, dtype=np.float64))
+    scale = float(np.median(dt))
+    keys = np.round(dt / scale, 9)
+    unique, classes = np.unique(keys, return_inverse=True)
+    return unique * scale, classes.astype(np.int64)
+
+
+def lti_response(time, forcing, A, B, C, *, start="rest", classes=None):
+    """Output ``C x`` of ``x' = A x + B u`` for a forcing ``u`` linear between samples.
+
+    Exact (first-order hold) discretization per distinct step length, via the matrix
+    exponential of the augmented generator. ``start="rest"`` starts at x = 0;
+    ``start="steady"`` starts at the static equilibrium for ``u[0]`` (A must be invertible).
+    ``classes`` may pass a precomputed :func:`step_classes` result.
+    """
+    A = np.atleast_2d(np.asarray(A, dtype=np.float64))
+    B = np.asarray(B, dtype=np.float64).reshape(-1)
+    C = np.asarray(C, dtype=np.float64).reshape(-1)
+    order = A.shape[0]
+    steps, index = step_classes(time) if classes is None else classes
+    phis = np.empty((steps.size, order, order))
+    gamma0s = np.empty((steps.size, order))
+    gamma1s = np.empty((steps.size, order))
+    for j, dt in enumerate(steps):
+        generator = np.zeros((order + 2, order + 2))
+        generator[:order, :order] = A * dt
+        generator[:order, order] = B * dt
+        generator[order, order + 1] = 1.0
+        exp = scipy.linalg.expm(generator)
+        phis[j] = exp[:order, :order]
+        zero_hold = exp[:order, order]
+        ramp = exp[:order, order + 1]
+        gamma0s[j] = zero_hold - ramp
+        gamma1s[j] = ramp
+    forcing = np.ascontiguousarray(forcing, dtype=np.float64)
+    if start == "steady":
+        x0 = -np.linalg.solve(A, B * forcing[0])
+    else:
+        x0 = np.zeros(order)
+    return _step_lti(forcing, index, phis, gamma0s, gamma1s, C, x0)
+
+
+def second_order_system(stiffness, damping, gain):
+    """State space of ``x'' + damping*x' + stiffness*x = gain*u`` (lumped model (13))."""
+    return (np.array([[0.0, 1.0], [-stiffness, -damping]]), np.array([0.0, gain]), np.array([1.0, 0.0]))
+
+
+def first_order_system(rate, gain):
+    """State space of ``y' = -rate*y + gain*u`` (the scalar plant of GUIDE §2)."""
+    return np.array([[-rate]]), np.array([gain]), np.array([1.0])
+
+
+__all__ = ["AMBIENT_TEMPERATURE", "MAGNETIC_COLUMNS", "first_order_system", "lti_response",
+           "second_order_system", "simulate_members", "step_classes"]

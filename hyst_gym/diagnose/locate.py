@@ -1,0 +1,105 @@
+"""Stage 2: locate the mismatch in the base model's residual.
+
+Every statistic works on the normalized residual (residual / channel noise level) of the
+whole recording. Significance levels assume independent samples; a residual that is
+not white makes them optimistic, which is why they only rank places, never decide the
+verdict on their own (the decision is by held-out error, :mod:`hyst_gym.diagnose.core`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+N_BINS = 10
+
+
+def whiteness(residual, lags: int = 20) -> dict:
+    """Ljung-Box test of the residual's autocorrelation up to ``lags`` samples."""
+    r = residual - residual.mean()
+    n = r.size
+    denom = float(r @ r) or 1.0
+    acf = np.array([float(r[:-k] @ r[k:]) / denom for k in range(1, lags + 1)])
+    q = n * (n + 2) * float(np.sum(acf ** 2 / (n - np.arange(1, lags + 1))))
+    return {"lag1_autocorrelation": float(acf[0]), "ljung_box_q": q, "lags": lags,
+            "p_value": float(stats.chi2.sf(q, lags)), "white": bool(stats.chi2.sf(q, lags) > 1e-3)}
+
+
+def input_cross_correlation(residual, field, max_lag: int = 20) -> dict:
+    """Largest |correlation| between the residual and the input field over +-max_lag samples."""
+    r = (residual - residual.mean()) / (residual.std() or 1.0)
+    h = (field - field.mean()) / (field.std() or 1.0)
+    n = r.size
+    best_lag, best = 0, 0.0
+    for lag in range(-max_lag, max_lag + 1):
+        if lag >= 0:
+            value = float(r[lag:] @ h[:n - lag]) / n
+        else:
+            value = float(r[:lag] @ h[-lag:]) / n
+        if abs(value) > abs(best):
+            best_lag, best = lag, value
+    bound = 1.96 / np.sqrt(n)
+    return {"max_correlation": best, "at_lag_samples": best_lag, "bound_95": float(bound),
+            "significant": bool(abs(best) > 2 * bound)}
+
+
+def time_since_reversal(time, field):
+    rate = np.diff(field)
+    direction = np.sign(rate)
+    out = np.zeros_like(time)
+    last = time[0]
+    previous = 0.0
+    for i in range(1, time.size):
+        d = direction[i - 1]
+        if d != 0 and previous != 0 and d != previous:
+            last = time[i - 1]
+        if d != 0:
+            previous = d
+        out[i] = time[i] - last
+    return out
+
+
+def binned_dependence(residual, feature, name) -> dict:
+    """Fraction of residual variance explained by the bin means of ``feature`` (eta^2), F-test."""
+    edges = np.unique(np.quantile(feature, np.linspace(0, 1, N_BINS + 1)))
+    if edges.size < 3:
+        return {"feature": name, "explained_fraction": 0.0, "p_value": 1.0, "worst_bin": None}
+    idx = np.clip(np.searchsorted(edges, feature, side="right") - 1, 0, edges.size - 2)
+    groups = [residual[idx == b] for b in range(edges.size - 1) if np.any(idx == b)]
+    means = np.array([g.mean() for g in groups])
+    sizes = np.array([g.size for g in groups])
+    total = float(np.sum((residual - residual.mean()) ** 2)) or 1.0
+    between = float(np.sum(sizes * (means - residual.mean()) ** 2))
+    k, n = len(groups), residual.size
+    f = (between / max(k - 1, 1)) / (max(total - between, 1e-300) / max(n - k, 1))
+    worst = int(np.argmax(np.abs(means)))
+    lo, hi = edges[worst], edges[min(worst + 1, edges.size - 1)]
+    return {"feature": name, "explained_fraction": between / total, "p_value": float(stats.f.sf(f, k - 1, n - k)),
+            "worst_bin": [float(lo), float(hi)], "worst_bin_mean": float(means[worst])}
+
+
+def frequency_bands(residual, time, n_bands: int = 8) -> list[dict]:
+    """Residual power per octave band relative to the median band density (white -> ~1)."""
+    dt = float(np.median(np.diff(time)))
+    spectrum = np.abs(np.fft.rfft(residual - residual.mean())) ** 2
+    freqs = np.fft.rfftfreq(residual.size, dt)
+    nyquist = freqs[-1]
+    edges = nyquist / 2.0 ** np.arange(n_bands, -1, -1)
+    edges[0] = freqs[1]
+    densities = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        sel = (freqs >= lo) & (freqs < hi)
+        densities.append(float(spectrum[sel].mean()) if sel.any() else 0.0)
+    reference = float(np.median(densities)) or 1.0
+    return [{"band_hz": [float(lo), float(hi)], "relative_density": d / reference}
+            for lo, hi, d in zip(edges[:-1], edges[1:], densities)]
+
+
+def summarize_features(features: list[dict]) -> str:
+    ranked = sorted(features, key=lambda f: -f["explained_fraction"])
+    top = ranked[0]
+    if top["explained_fraction"] < 0.02:
+        return "no variable explains more than 2 % of the residual variance"
+    lo, hi = top["worst_bin"]
+    return (f"the residual depends most on {top['feature']} ({100 * top['explained_fraction']:.0f} % of its "
+            f"variance; largest where {top['feature']} is in [{lo:.4g}, {hi:.4g}])")

@@ -1,0 +1,200 @@
+"""``hyst-gym make-recording``: synthetic recordings with one concealed effect.
+
+``make_recording(effect, seed, strength=1.0, output="both", n_samples=8000)`` draws from the
+seed: the base hysteresis parameters, the transducer coefficients, the excitation (a recorded
+DC bias, sines at several frequencies under a slowly varying envelope that makes minor
+loops, a ramp and a few fast transitions) and the sensor noise; then it adds the effect.
+Nothing in the columns or in the sidecar names the effect (for ``thermal_drift`` there is no
+temperature column).
+
+Realism versus independence from the fitter: the generator integrates on a time grid 4x
+finer than the recording, with a 4x finer field substep, and decimates, so the fitted model
+never reproduces the generator's numbers exactly. The recording lasts a fraction of a
+second (20-30 kHz sampling, so that the transducer's kHz dynamics are resolved); the
+thermal time constant is compressed to the record length (a tens-of-ms heating time is
+not realistic for a Terfenol-D rod -- it stands for minutes-long records of a real coil).
+
+Effects at ``strength = 1`` (the default; strength scales the effect's size):
+
+* ``thermal_drift``: coil temperature rises ~25 K over the record (a ~ T, eq. (4); Ms drops 0.1 %/K);
+* ``eddy_current``: ``H_eff = H - k_e dM/dt`` with k_e*|dM/dt| reaching ~5 % of the field amplitude;
+* ``quadratic_magnetostriction``: displacement forced by M^2 (12) instead of the linearized M (13);
+* ``rod_dynamics``: the finite-element rod (10) with a light tip load instead of the lumped mass;
+* ``sensor_lag``: a first-order lag of 2-4 samples on every output sensor;
+* ``field_bias``: an unrecorded DC field of 10-20 % of the drive amplitude (a permanent magnet);
+* ``anhysteretic_shape``: Langevin (3) instead of Ising (2) (strength does not apply).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from .kernels import AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, lti_response, second_order_system, simulate_members
+from .model import EFFECTS, PAPER_CHAT, PAPER_KHAT
+from .recording import Recording, write_recording
+
+GENERATOR_EFFECTS = EFFECTS + ("none",)
+OVERSAMPLE = 4
+PAPER_ZETAHAT = 1.3724e-2  # m/s^2 per A/m, eq. (13)
+
+#: Rod data (GUIDE §2) used for rod_dynamics; the tip load is light so that rod modes matter.
+ROD = dict(Y=3.0e10, rho=9250.0, L=0.115, A=1.2668e-4, cD=3e6, kL=2e6, cL=1e3)
+
+
+def _excitation(rng, time):
+    duration = time[-1] - time[0] + (time[1] - time[0])
+    amplitude = rng.uniform(4e4, 1e5)                       # A/m
+    bias = rng.uniform(0.0, 0.4) * amplitude                # recorded DC bias, A/m
+    n_sines = int(rng.integers(2, 4))
+    freqs = np.sort(rng.uniform(8.0, 60.0, n_sines))        # Hz
+    weights = rng.dirichlet(np.ones(n_sines))
+    phases = rng.uniform(0, 2 * np.pi, n_sines)
+    carrier = sum(w * np.sin(2 * np.pi * f * time + p) for w, f, p in zip(weights, freqs, phases))
+    carrier /= max(np.max(np.abs(carrier)), 1e-12)
+    env_f = rng.uniform(1.0, 3.0) / duration                 # slow envelope -> minor loops
+    envelope = 0.55 + 0.45 * np.cos(2 * np.pi * env_f * time + rng.uniform(0, 2 * np.pi))
+    field = bias + amplitude * envelope * carrier
+    # a ramp segment and a few fast transitions (rise 0.2-0.5 ms) that excite kHz dynamics
+    t_ramp = rng.uniform(0.1, 0.6) * duration
+    field += 0.15 * amplitude * np.clip((time - t_ramp) / (0.2 * duration), 0.0, 1.0) * rng.choice([-1, 1])
+    for _ in range(int(rng.integers(3, 6))):
+        t0 = rng.uniform(0.05, 0.95) * duration
+        rise = rng.uniform(2e-4, 5e-4)
+        size = rng.uniform(0.05, 0.15) * amplitude * rng.choice([-1, 1])
+        field += size * 0.5 * (1 + np.tanh((time - t0) / (0.3 * rise)))
+    return field, amplitude, bias
+
+
+def _rod_state_space(rng, n_elements=12, tip_mass=0.05):
+    """FEM rod (10): fixed at x = 0, tip mass/spring/damper, tip forcing; returns (A, B, C)
+    for the tip displacement under a unit tip force (N)."""
+    r = {k: v * rng.uniform(0.95, 1.05) for k, v in ROD.items()}
+    h = r["L"] / n_elements
+    n = n_elements
+    K = np.zeros((n, n)); Mm = np.zeros((n, n)); D = np.zeros((n, n))
+    ke = np.array([[1, -1], [-1, 1]])
+    me = np.array([[2, 1], [1, 2]]) * r["rho"] * r["A"] * h / 6
+    for e in range(n):
+        nodes = [e - 1, e]  # node -1 is the clamped end
+        for i in range(2):
+            for j in range(2):
+                if nodes[i] >= 0 and nodes[j] >= 0:
+                    K[nodes[i], nodes[j]] += r["Y"] * r["A"] / h * ke[i, j]
+                    D[nodes[i], nodes[j]] += r["cD"] * r["A"] / h * ke[i, j]
+                    Mm[nodes[i], nodes[j]] += me[i, j]
+    K[-1, -1] += r["kL"]; D[-1, -1] += r["cL"]; Mm[-1, -1] += tip_mass
+    Minv = np.linalg.inv(Mm)
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ D]])
+    force = np.zeros(n); force[-1] = 1.0
+    B = np.concatenate([np.zeros(n), Minv @ force])
+    C = np.zeros(2 * n); C[n - 1] = 1.0
+    static = float(np.linalg.solve(K, force)[-1])
+    return A, B, C, static
+
+
+def make_recording(effect: str = "none", seed: int = 0, strength: float = 1.0, output: str = "both",
+                   n_samples: int = 8000) -> tuple[Recording, dict]:
+    """Draw a synthetic recording with ``effect`` concealed in it; returns (recording, sidecar)."""
+    recording, sidecar, _ = make_recording_with_truth(effect, seed, strength, output, n_samples)
+    return recording, sidecar
+
+
+def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: float = 1.0, output: str = "both",
+                              n_samples: int = 8000) -> tuple[Recording, dict, dict]:
+    """As :func:`make_recording`, plus the true parameters (for tests and studies only)."""
+    if effect not in GENERATOR_EFFECTS:
+        raise ValueError(f"--effect must be one of {', '.join(GENERATOR_EFFECTS)}, got {effect!r}")
+    if output not in ("magnetization", "displacement", "both"):
+        raise ValueError(f"--output must be magnetization, displacement or both, got {output!r}")
+    if not (np.isfinite(strength) and strength >= 0):
+        raise ValueError(f"--strength must be a finite number >= 0, got {strength!r}")
+    if output == "magnetization" and effect in ("quadratic_magnetostriction", "rod_dynamics"):
+        raise ValueError(f"--effect {effect} acts on the displacement only; use --output displacement or both")
+    if int(n_samples) < 400:
+        raise ValueError(f"--samples must be >= 400, got {n_samples!r}")
+    n_samples = int(n_samples)
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 6]))
+    fs = rng.uniform(20e3, 30e3)
+    time = np.arange(n_samples) / fs
+    fine_time = np.arange(n_samples * OVERSAMPLE) / (fs * OVERSAMPLE)
+    field, amplitude, bias = _excitation(rng, fine_time)
+    a = rng.uniform(4000, 9000); k = rng.uniform(800, 3000); rho = rng.uniform(-0.6, 0.4)
+    Ms = rng.uniform(6e5, 9e5); c = rng.uniform(0.1, 0.4)
+    curve = "langevin" if effect == "anhysteretic_shape" else "ising"
+    if curve == "langevin":
+        a = a / 3.0  # same initial anhysteretic slope Ms/(3a) as the Ising curve it replaces
+    alpha = rho * a / Ms * (3.0 if curve == "langevin" else 1.0)
+    chat = PAPER_CHAT * rng.uniform(0.8, 1.25); khat = PAPER_KHAT * rng.uniform(0.8, 1.25)
+    zetahat = PAPER_ZETAHAT * rng.uniform(0.8, 1.25)
+    noise_rel = rng.uniform(0.5e-3, 1.5e-3)
+    effect_rng = np.random.default_rng(np.random.SeedSequence([int(seed), 6, 1]))
+    row = dict(a=a, k=k, alpha=alpha, Ms=Ms, c=c, H0=0.0, k_e=0.0, heating=0.0, tau_th=1.0, beta_Ms=0.0)
+    duration = fine_time[-1]
+    kind = 1 if curve == "langevin" else 0
+    if effect == "field_bias":
+        row["H0"] = strength * effect_rng.uniform(0.1, 0.2) * amplitude * effect_rng.choice([-1, 1])
+    if effect == "eddy_current":
+        plain = simulate_members(fine_time, field, np.array([[row[c_] for c_ in MAGNETIC_COLUMNS]]), kind, 25.0,
+                                 AMBIENT_TEMPERATURE)[:, 0]
+        rate = np.abs(np.diff(plain)) / np.diff(fine_time)
+        row["k_e"] = strength * 0.05 * amplitude / float(np.percentile(rate, 99))
+    if effect == "thermal_drift":
+        tau = effect_rng.uniform(0.5, 2.0) * duration
+        rise = 25.0 * strength
+        row["tau_th"] = tau
+        row["heating"] = rise / (float(np.mean(field ** 2)) * tau * (1 - np.exp(-duration / tau)))
+        row["beta_Ms"] = 1e-3
+    magnetization = simulate_members(fine_time, field, np.array([[row[c_] for c_ in MAGNETIC_COLUMNS]]), kind,
+                                     25.0, AMBIENT_TEMPERATURE)[:, 0]
+    M0 = float(np.median(magnetization))
+    if effect == "rod_dynamics":
+        A, B, C, static = _rod_state_space(effect_rng, tip_mass=0.05 / max(strength, 1e-3))
+        # same static gain as the lumped model it replaces: zetahat/khat per unit (M - M0)
+        gain = zetahat / khat / static
+        displacement = lti_response(fine_time, gain * (magnetization - M0), A, B, C, start="steady")
+    else:
+        if effect == "quadratic_magnetostriction":
+            ref = max(abs(M0), 0.3 * Ms)
+            linear = 2 * ref * (magnetization - M0)
+            forcing = zetahat / (2 * ref) * ((1 - strength) * linear + strength * (magnetization ** 2 - M0 ** 2))
+        else:
+            forcing = zetahat * (magnetization - M0)
+        A, B, C = second_order_system(khat, chat, 1.0)
+        displacement = lti_response(fine_time, forcing, A, B, C, start="steady")
+    outputs = {"magnetization": magnetization, "displacement": displacement}
+    if effect == "sensor_lag":
+        tau = strength * effect_rng.uniform(2.0, 4.0) / fs
+        if tau > 0:
+            outputs = {ch: lti_response(fine_time, sig, [[-1 / tau]], [1 / tau], [1.0], start="steady")
+                       for ch, sig in outputs.items()}
+    keep = slice(None, None, OVERSAMPLE)
+    noise_rng = np.random.default_rng(np.random.SeedSequence([int(seed), 6, 2]))
+    channels = ("magnetization", "displacement") if output == "both" else (output,)
+    recorded = {}
+    for ch in channels:
+        clean = outputs[ch][keep]
+        recorded[ch] = clean + noise_rel * float(np.ptp(clean)) * noise_rng.standard_normal(clean.size)
+    recording = Recording(time=time, field=field[keep], source=f"make-recording seed {seed}", **recorded)
+    sidecar = {"material": "Terfenol-D (synthetic)", "notes": f"synthetic recording from hyst-gym, seed {seed}"}
+    truth = dict(row, rho=rho, curve=curve, chat=chat, khat=khat, zetahat=zetahat, M0=M0,
+                 noise_rel=noise_rel, sample_rate=fs)
+    return recording, sidecar, truth
+
+
+def configure_parser(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--effect", required=True, choices=GENERATOR_EFFECTS, help="concealed effect")
+    parser.add_argument("--seed", type=int, required=True, help="seed for parameters, excitation and noise")
+    parser.add_argument("--strength", type=float, default=1.0, help="size of the effect (default 1)")
+    parser.add_argument("--output", default="both", choices=("magnetization", "displacement", "both"))
+    parser.add_argument("--samples", type=int, default=8000, help="number of samples (default 8000)")
+    parser.add_argument("--out", required=True, type=Path, help="CSV file to write (sidecar .json beside it)")
+
+
+def main(args) -> int:
+    recording, sidecar = make_recording(args.effect, args.seed, args.strength, args.output, args.samples)
+    write_recording(args.out, recording, sidecar)
+    print(f"wrote {args.out} ({recording.size} samples, columns: time, field, {', '.join(recording.channels)})")
+    return 0

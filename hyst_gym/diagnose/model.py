@@ -1,0 +1,323 @@
+"""The fitted model: hysteresis + transducer + optional extension, with named parameters.
+
+Base structures (``transducer``):
+
+* ``"none"`` -- magnetization only (no displacement channel to explain);
+* ``"first_order"`` -- displacement ``y' = -lam*y + nu*(M - M0)`` (scalar plant, GUIDE §2);
+* ``"lumped"`` -- linearized lumped model (13) about a bias magnetization M0:
+  ``x'' + chat*x' + khat*x = zetahat*(M - M0)``;
+* ``"lumped_nonlinear"`` -- nonlinear lumped model (12): ``x'' + chat*x' + khat*x = zeta2*(M^2 - M0^2)``.
+
+Extensions (the GUIDE §6 vocabulary), each with named physical parameters and each equal to
+the base model when those parameters vanish:
+
+==============================  ============================================================
+``field_bias``                  ``H0`` (A/m) added to the recorded field
+``eddy_current``                ``k_e`` (s): ``H_eff = H - k_e*dM/dt``
+``thermal_drift``               ``heating`` (K/s per (A/m)^2) and ``tau_th`` (s): coil
+                                temperature rise, ``a(T) = a*T/T_amb`` (4)
+``sensor_lag``                  ``tau_m``, ``tau_x`` (s): first-order sensor lags
+``quadratic_magnetostriction``  ``kappa`` (m/A): forcing ``zetahat*((M-M0) + kappa*(M-M0)^2)``
+                                (the M^2 law of (12) about a bias gives kappa = 1/(2*M0))
+``rod_dynamics``                ``f2`` (Hz), ``zeta2`` and ``g2``: a second longitudinal
+                                rod mode (10) in parallel with the lumped one; g2 is its static
+                                gain relative to the first
+``anhysteretic_shape``          the other anhysteretic curve (Ising <-> Langevin)
+==============================  ============================================================
+
+The fitted coordinates are ``ln(value)`` for the positive scale parameters and
+``value/scale`` for the others; the feedback is fitted as ``rho = alpha*Man'(0)`` (the
+dimensionless mean-field gain, ``alpha*Ms/a`` for Ising, ``alpha*Ms/(3a)`` for Langevin).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, first_order_system, lti_response,
+                      second_order_system, simulate_members, step_classes)
+from .recording import Recording
+
+TRANSDUCERS = ("none", "first_order", "lumped", "lumped_nonlinear", "fem")
+EFFECTS = ("thermal_drift", "eddy_current", "quadratic_magnetostriction", "rod_dynamics",
+           "sensor_lag", "field_bias", "anhysteretic_shape")
+#: Parameters each extension adds (anhysteretic_shape adds none: it swaps the curve).
+EFFECT_PARAMETERS = {
+    "field_bias": ("H0",),
+    "eddy_current": ("k_e",),
+    "thermal_drift": ("heating", "tau_th"),
+    "sensor_lag": ("tau_m", "tau_x"),
+    "quadratic_magnetostriction": ("kappa",),
+    "rod_dynamics": ("f2", "zeta2", "g2"),
+    "anhysteretic_shape": (),
+}
+#: Paper values of the lumped coefficients (13).
+PAPER_CHAT = 7.8899e3   # 1/s
+PAPER_KHAT = 6.4251e7   # 1/s^2
+PAPER_MS = 7.65e5       # A/m
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One model parameter: physical value, bounds, unit, whether it is fitted."""
+
+    name: str
+    value: float
+    lower: float
+    upper: float
+    unit: str
+    log: bool = False
+    free: bool = True
+    scale: float = 1.0  # fitted coordinate is value/scale for linear parameters
+
+    def to_x(self, value):
+        return np.log(value) if self.log else value / self.scale
+
+    def from_x(self, x):
+        return float(np.exp(x)) if self.log else float(x * self.scale)
+
+    @property
+    def x_bounds(self):
+        return self.to_x(self.lower), self.to_x(self.upper)
+
+
+@dataclass(frozen=True)
+class Structure:
+    """What is being fitted: transducer, anhysteretic curve, extension, options."""
+
+    transducer: str = "lumped"
+    anhysteretic: str = "ising"
+    extension: str | None = None
+    fit_mechanics: bool = True
+
+    def __post_init__(self):
+        if self.transducer not in TRANSDUCERS:
+            raise ValueError(f"model must be one of {', '.join(TRANSDUCERS)}, got {self.transducer!r}")
+        if self.anhysteretic not in ("ising", "langevin"):
+            raise ValueError(f"anhysteretic must be 'ising' or 'langevin', got {self.anhysteretic!r}")
+        if self.extension is not None and self.extension not in EFFECTS:
+            raise ValueError(f"unknown effect {self.extension!r}; expected one of {', '.join(EFFECTS)}")
+
+    @property
+    def curve(self) -> str:
+        if self.extension == "anhysteretic_shape":
+            return "langevin" if self.anhysteretic == "ising" else "ising"
+        return self.anhysteretic
+
+
+def slope_factor(curve: str) -> float:
+    """Man'(0)*a/Ms: 1 for Ising, 1/3 for Langevin."""
+    return 1.0 if curve == "ising" else 1.0 / 3.0
+
+
+class Model:
+    """A parametrized forward model of one recording.
+
+    ``parameters`` is an ordered dict name -> :class:`Parameter`; :meth:`predict` maps a
+    dict of physical values to the predicted output channels.
+    """
+
+    def __init__(self, recording: Recording, structure: Structure, parameters: dict,
+                 max_field_step: float):
+        self.recording = recording
+        self.structure = structure
+        self.parameters = dict(parameters)
+        self.max_field_step = float(max_field_step)
+        self._classes = step_classes(recording.time)
+        self.channels = recording.channels
+        if structure.transducer == "none" and "displacement" in self.channels:
+            self.channels = tuple(c for c in self.channels if c != "displacement")
+
+    # ---- parameter vectors
+    @property
+    def free_names(self):
+        return [n for n, p in self.parameters.items() if p.free]
+
+    def values(self) -> dict:
+        return {n: p.value for n, p in self.parameters.items()}
+
+    def x_from_values(self, values) -> np.ndarray:
+        return np.array([self.parameters[n].to_x(values[n]) for n in self.free_names])
+
+    def values_from_x(self, x) -> dict:
+        values = self.values()
+        for n, xi in zip(self.free_names, x):
+            values[n] = self.parameters[n].from_x(xi)
+        return values
+
+    def with_values(self, values: dict) -> "Model":
+        params = {n: replace(p, value=float(np.clip(values.get(n, p.value), p.lower, p.upper)))
+                  for n, p in self.parameters.items()}
+        return Model(self.recording, self.structure, params, self.max_field_step)
+
+    # ---- forward model
+    def magnetic_row(self, values) -> np.ndarray:
+        curve = self.structure.curve
+        a, Ms = values["a"], values["Ms"]
+        alpha = values["rho"] * a / (Ms * slope_factor(curve))
+        row = dict(a=a, k=values["k"], alpha=alpha, Ms=Ms, c=values["c"], H0=values.get("H0", 0.0),
+                   k_e=values.get("k_e", 0.0), heating=values.get("heating", 0.0),
+                   tau_th=values.get("tau_th", 1.0), beta_Ms=0.0)
+        return np.array([row[c] for c in MAGNETIC_COLUMNS])
+
+    def magnetization(self, values_list) -> np.ndarray:
+        """Simulated M (A/m) for each values dict: shape (T, len(values_list))."""
+        rows = np.array([self.magnetic_row(v) for v in values_list])
+        unique, inverse = np.unique(rows, axis=0, return_inverse=True)
+        kind = 0 if self.structure.curve == "ising" else 1
+        out = simulate_members(self.recording.time, self.recording.field, np.ascontiguousarray(unique), kind,
+                               self.max_field_step, AMBIENT_TEMPERATURE)
+        return out[:, np.asarray(inverse).reshape(-1)]
+
+    def predict(self, values, magnetization=None) -> dict:
+        """Predicted channels for one values dict (``magnetization`` may be passed if known)."""
+        if magnetization is None:
+            magnetization = self.magnetization([values])[:, 0]
+        out = {}
+        time = self.recording.time
+        if "magnetization" in self.channels:
+            out["magnetization"] = _lag(time, magnetization, values.get("tau_m", 0.0), self._classes)
+        if "displacement" in self.channels:
+            out["displacement"] = _lag(time, self.displacement(values, magnetization),
+                                       values.get("tau_x", 0.0), self._classes)
+        return out
+
+    def displacement(self, values, magnetization) -> np.ndarray:
+        transducer = self.structure.transducer
+        M0 = values["M0"]
+        if transducer == "lumped_nonlinear":
+            forcing = magnetization ** 2 - M0 ** 2
+            gain = values["zeta2"]
+        else:
+            deviation = magnetization - M0
+            forcing = deviation + values.get("kappa", 0.0) * deviation ** 2
+            gain = values["nu"] if transducer == "first_order" else values["zetahat"]
+        if transducer == "first_order":
+            A, B, C = first_order_system(values["lam"], gain)
+        elif transducer in ("lumped", "lumped_nonlinear"):
+            A, B, C = second_order_system(values["khat"], values["chat"], gain)
+        else:
+            raise ValueError("the 'fem' base model needs hyst_gym.physics.fem, which is not available yet")
+        g2 = values.get("g2", 0.0)
+        if g2 != 0.0 and transducer != "first_order":
+            omega = 2 * np.pi * values["f2"]
+            stiffness = values["khat"]
+            A2, B2, C2 = second_order_system(omega ** 2, 2 * values["zeta2"] * omega, g2 * gain * omega ** 2 / stiffness)
+            A = np.block([[A, np.zeros((2, 2))], [np.zeros((2, 2)), A2]])
+            B = np.concatenate([B, B2])
+            C = np.concatenate([C, C2])
+        return lti_response(self.recording.time, forcing, A, B, C, start="steady", classes=self._classes)
+
+
+def _lag(time, signal, tau, classes):
+    """First-order sensor lag ``tau*y' = u - y`` (tau in s), starting settled."""
+    if tau <= 0.0:
+        return signal
+    return lti_response(time, signal, [[-1.0 / tau]], [1.0 / tau], [1.0], start="steady", classes=classes)
+
+
+def noise_level(signal) -> float:
+    """Robust white-noise standard deviation from second differences (MAD / sqrt(6)).
+
+    Smooth signal content barely enters second differences at high sampling rates, so this
+    estimates the sensor noise of a densely sampled channel; floored at 1e-6 of the range.
+    """
+    d2 = np.diff(np.asarray(signal, dtype=np.float64), 2)
+    sigma = 1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0)
+    span = float(np.ptp(signal)) or 1.0
+    return float(max(sigma, 1e-6 * span))
+
+
+def base_parameters(recording: Recording, structure: Structure) -> dict:
+    """Initial values and bounds of the base model's parameters, scaled to the recording."""
+    field = recording.field
+    h_max = float(np.max(np.abs(field))) or 1.0
+    duration = float(recording.time[-1] - recording.time[0])
+    dt = float(np.median(np.diff(recording.time)))
+    has_m = recording.magnetization is not None
+    m_max = float(np.max(np.abs(recording.magnetization))) if has_m else PAPER_MS * 0.8
+    m_max = max(m_max, 1e-9)
+    params = {
+        "a": Parameter("a", h_max / 5, h_max / 2000, 20 * h_max, "A/m", log=True),
+        "k": Parameter("k", h_max / 20, h_max / 1e5, 3 * h_max, "A/m", log=True),
+        "rho": Parameter("rho", 0.0, -5.0, 0.99, "1 (alpha*Man'(0))", scale=0.5),
+        "Ms": Parameter("Ms", 1.3 * m_max, 0.7 * m_max, 30 * m_max, "A/m", log=True, free=has_m),
+        "c": Parameter("c", 0.3, 0.0, 0.95, "1", scale=0.2),
+    }
+    if not has_m:
+        params["Ms"] = Parameter("Ms", PAPER_MS, PAPER_MS / 2, PAPER_MS * 2, "A/m", log=True, free=False)
+    transducer = structure.transducer
+    if "displacement" in recording.channels and transducer != "none":
+        x_span = float(np.ptp(recording.displacement)) or 1e-9
+        m_scale = params["Ms"].value
+        params["M0"] = Parameter("M0", 0.0, -2 * m_scale, 2 * m_scale, "A/m", scale=0.1 * m_scale)
+        if transducer == "first_order":
+            params["lam"] = Parameter("lam", 100.0, 0.01 / duration, 0.5 / dt, "1/s", log=True)
+            nu = 100.0 * x_span / m_scale
+            params["nu"] = Parameter("nu", nu, -1e3 * nu, 1e3 * nu, "m/s per A/m", scale=nu)
+        else:
+            fix = not structure.fit_mechanics
+            params["khat"] = Parameter("khat", PAPER_KHAT, PAPER_KHAT / 400, PAPER_KHAT * 400, "1/s^2",
+                                       log=True, free=not fix)
+            params["chat"] = Parameter("chat", PAPER_CHAT, PAPER_CHAT / 1000, PAPER_CHAT * 100, "1/s",
+                                       log=True, free=not fix)
+            if transducer == "lumped_nonlinear":
+                zeta2 = PAPER_KHAT * x_span / m_scale ** 2
+                params["zeta2"] = Parameter("zeta2", zeta2, -1e4 * zeta2, 1e4 * zeta2, "m/s^2 per (A/m)^2",
+                                            scale=zeta2)
+            else:
+                zeta = PAPER_KHAT * x_span / m_scale
+                params["zetahat"] = Parameter("zetahat", zeta, -1e4 * zeta, 1e4 * zeta, "m/s^2 per A/m",
+                                              scale=zeta)
+    return params
+
+
+def extension_parameters(recording: Recording, structure: Structure, base_values: dict) -> dict:
+    """Initial values and bounds of the parameters ``structure.extension`` adds."""
+    effect = structure.extension
+    field = recording.field
+    time = recording.time
+    h_max = float(np.max(np.abs(field))) or 1.0
+    duration = float(time[-1] - time[0])
+    dt = float(np.median(np.diff(time)))
+    rate = np.abs(np.diff(field)) / np.diff(time)
+    out = {}
+    if effect == "field_bias":
+        out["H0"] = Parameter("H0", 0.0, -h_max, h_max, "A/m", scale=0.01 * h_max)
+    elif effect == "eddy_current":
+        ms = base_values.get("Ms", PAPER_MS)
+        dm_dt = ms * float(np.percentile(rate, 95)) / h_max + 1e-30
+        upper = 2.0 * h_max / dm_dt
+        out["k_e"] = Parameter("k_e", 1e-3 * upper, 0.0, upper, "s", scale=1e-2 * upper)
+    elif effect == "thermal_drift":
+        mean_sq = float(np.mean(field ** 2)) or 1.0
+        upper = 300.0 / (mean_sq * duration)  # at most ~300 K of heating over the record
+        out["heating"] = Parameter("heating", 0.01 * upper, 0.0, upper, "K/s per (A/m)^2", scale=0.01 * upper)
+        out["tau_th"] = Parameter("tau_th", duration, 5 * dt, 1e3 * duration, "s", log=True)
+    elif effect == "sensor_lag":
+        for name, channel in (("tau_m", "magnetization"), ("tau_x", "displacement")):
+            free = channel in recording.channels and (channel == "magnetization" or structure.transducer != "none")
+            out[name] = Parameter(name, dt if free else 0.0, 0.0, 0.05 * duration, "s", scale=dt, free=free)
+    elif effect == "quadratic_magnetostriction":
+        m_span = base_values.get("Ms", PAPER_MS)
+        out["kappa"] = Parameter("kappa", 0.0, -2.0 / m_span, 2.0 / m_span, "m/A", scale=0.1 / m_span)
+    elif effect == "rod_dynamics":
+        f1 = np.sqrt(base_values.get("khat", PAPER_KHAT)) / (2 * np.pi)
+        nyquist = 0.5 / dt
+        out["f2"] = Parameter("f2", min(5 * f1, 0.6 * nyquist), 1.2 * f1, 0.98 * nyquist, "Hz", log=True)
+        out["zeta2"] = Parameter("zeta2", 0.05, 1e-3, 2.0, "1", log=True)
+        out["g2"] = Parameter("g2", 0.0, -1.0, 1.0, "1 (static gain relative to mode 1)", scale=0.01)
+    return out
+
+
+def applicable_effects(recording: Recording, structure: Structure) -> list[str]:
+    """Vocabulary effects that can show in this recording under this base structure."""
+    has_x = "displacement" in recording.channels and structure.transducer not in ("none",)
+    effects = ["thermal_drift", "eddy_current", "sensor_lag", "field_bias", "anhysteretic_shape"]
+    if has_x and structure.transducer != "lumped_nonlinear":
+        effects.insert(2, "quadratic_magnetostriction")
+    if has_x and structure.transducer in ("lumped", "lumped_nonlinear"):
+        effects.insert(3, "rod_dynamics")
+    return effects

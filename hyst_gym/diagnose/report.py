@@ -1,0 +1,161 @@
+"""Stage 5: the report -- a plain-words paragraph, a JSON file and PNG plots."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .model import EFFECT_PARAMETERS
+
+EFFECT_WORDS = {
+    "thermal_drift": "thermal drift: the material heats up during the record and its anhysteretic parameter a "
+                     "moves with temperature (a ~ T, eq. 4)",
+    "eddy_current": "eddy-current (rate-dependent) loss: the material sees H - k_e dM/dt",
+    "quadratic_magnetostriction": "quadratic magnetostriction: the displacement follows M^2 (12), not the "
+                                  "linearized M (13)",
+    "rod_dynamics": "rod dynamics: a second longitudinal rod mode (10) that the lumped model lacks",
+    "sensor_lag": "sensor lag: a first-order lag in the output sensor(s)",
+    "field_bias": "an unrecorded DC bias field H0 (e.g. a permanent magnet) added to H",
+    "anhysteretic_shape": "the other anhysteretic curve (Ising (2) <-> Langevin (3))",
+}
+UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "tau_th": "s", "tau_m": "s", "tau_x": "s",
+         "kappa": "m/A", "f2": "Hz", "zeta2": "", "g2": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "",
+         "alpha": ""}
+
+
+def _fmt(name, values, sigmas):
+    value = values[name]
+    sigma = sigmas.get(name)
+    unit = UNITS.get(name, "")
+    text = f"{name} = {value:.4g}"
+    if sigma is not None and np.isfinite(sigma):
+        text += f" +- {sigma:.2g}"
+    return text + (f" {unit}" if unit else "")
+
+
+def explain(report) -> str:
+    """One paragraph in plain words: the effect, the evidence, the added model, the errors."""
+    base = report.baseline_heldout
+    loc = report.located["summary"]
+    if report.verdict == "none":
+        best = max(report.candidates, key=lambda c: c.improvement, default=None)
+        tail = (f" The best extension ({best.effect}) changed the held-out error by only "
+                f"{100 * best.improvement:.1f} %." if best else "")
+        return (f"The base model ({report.structure.transducer}, {report.structure.anhysteretic}) explains this "
+                f"recording to within noise: its held-out RMSE is {base:.2f} noise units on the last "
+                f"{100 * (1 - report.split_index / report.baseline.model.recording.size):.0f} % of the record, "
+                f"and no extension from the vocabulary beats it beyond noise.{tail} Verdict: none.")
+    if report.verdict == "unexplained":
+        ranked = sorted(report.candidates, key=lambda c: -c.improvement)
+        tried = ", ".join(f"{c.effect} {100 * c.improvement:+.0f} %" for c in ranked[:3])
+        return (f"The base model leaves a structured residual (held-out RMSE {base:.2f} noise units, where 1 is "
+                f"noise): {loc}. No extension in the vocabulary explains it (best held-out changes: {tried}). "
+                f"Verdict: unexplained.")
+    chosen = report.chosen
+    fit = chosen.fit
+    names = EFFECT_PARAMETERS[chosen.effect] or ("a", "k", "alpha", "Ms", "c")
+    values = dict(fit.values)
+    from .core import physical_params
+    values.update(physical_params(fit))
+    params = ", ".join(_fmt(n, values, fit.uncertainties) for n in names if fit.model.parameters.get(n) is None
+                       or fit.model.parameters[n].free or n == "alpha")
+    extra = ""
+    if chosen.effect == "thermal_drift":
+        rec = fit.model.recording
+        mean_sq = float(np.mean(rec.field ** 2))
+        extra = (f" (steady-state temperature rise at the record's mean H^2: "
+                 f"{values['heating'] * mean_sq * values['tau_th']:.3g} K; a(T) slope a/T_amb = "
+                 f"{values['a'] / 293.15:.4g} A/m per K)")
+    if chosen.effect == "quadratic_magnetostriction" and values.get("kappa"):
+        extra = f" (an M^2 law about a bias magnetization of {1 / (2 * values['kappa']):.4g} A/m)"
+    runner = sorted([c for c in report.candidates if c is not chosen], key=lambda c: -c.improvement)
+    second = f" The runner-up, {runner[0].effect}, reached {100 * runner[0].improvement:.0f} %." if runner else ""
+    return (f"The recording shows {EFFECT_WORDS[chosen.effect]}. Evidence: {loc}. Adding it to the base model "
+            f"with fitted {params}{extra} lowers the held-out RMSE from {base:.2f} to {chosen.heldout_rmse:.2f} "
+            f"noise units ({100 * chosen.improvement:.0f} % lower), and the BIC on the fitting block by "
+            f"{report.baseline.bic - chosen.bic:.0f}.{second} Verdict: {chosen.effect} "
+            f"(confidence {report.confidence:.2f}).")
+
+
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, (np.floating, float)):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj
+
+
+def write_json(report, path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = _jsonable(report.to_json())
+    data["split"]["heldout_from_time_s"] = float(report.baseline.model.recording.time[report.split_index])
+    path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+    return path
+
+
+def write_plots(report, directory) -> list[Path]:
+    """PNG plots: residual maps, loops and time traces, before (base) and after (verdict)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    base = report.baseline
+    rec = base.model.recording
+    after = report.chosen.fit if report.chosen is not None else None
+    models = [("before (base)", base)] + ([(f"after ({report.chosen.effect})", after)] if after else [])
+    predictions = [(label, fit.model.predict(fit.values)) for label, fit in models]
+    cut_time = rec.time[report.split_index]
+    paths = []
+    channels = base.model.channels
+
+    fig, axes = plt.subplots(len(channels), 2, figsize=(11, 3.6 * len(channels)), squeeze=False)
+    for row, ch in enumerate(channels):
+        for label, pred in predictions:
+            r = (pred[ch] - rec.output(ch)) / report.noise[ch]
+            axes[row, 0].plot(rec.time, r, ".", ms=1.5, alpha=0.5, label=label)
+            axes[row, 1].plot(rec.field, r, ".", ms=1.5, alpha=0.5, label=label)
+        axes[row, 0].axvline(cut_time, color="k", lw=0.8, ls="--")
+        axes[row, 0].set_xlabel("time (s)  [held-out block right of the dashed line]")
+        axes[row, 1].set_xlabel("field H (A/m)")
+        for ax in axes[row]:
+            ax.set_ylabel(f"{ch} residual (noise units)")
+            ax.legend(markerscale=6, fontsize=8)
+    fig.suptitle(f"Residual maps: {report.verdict}")
+    fig.tight_layout()
+    paths.append(directory / "residual_maps.png"); fig.savefig(paths[-1], dpi=110); plt.close(fig)
+
+    fig, axes = plt.subplots(1, len(channels), figsize=(5.5 * len(channels), 4.4), squeeze=False)
+    for col, ch in enumerate(channels):
+        ax = axes[0, col]
+        ax.plot(rec.field, rec.output(ch), color="0.6", lw=0.6, label="recording")
+        for label, pred in predictions:
+            ax.plot(rec.field, pred[ch], lw=0.8, label=label)
+        ax.set_xlabel("field H (A/m)"); ax.set_ylabel(f"{ch} ({'A/m' if ch == 'magnetization' else 'm'})")
+        ax.legend(fontsize=8)
+    fig.suptitle("Loops, before and after")
+    fig.tight_layout()
+    paths.append(directory / "loops.png"); fig.savefig(paths[-1], dpi=110); plt.close(fig)
+
+    fig, axes = plt.subplots(len(channels), 1, figsize=(11, 3.2 * len(channels)), squeeze=False)
+    for row, ch in enumerate(channels):
+        ax = axes[row, 0]
+        ax.plot(rec.time, rec.output(ch), color="0.6", lw=0.8, label="recording")
+        for label, pred in predictions:
+            ax.plot(rec.time, pred[ch], lw=0.8, label=label)
+        ax.axvspan(cut_time, rec.time[-1], color="y", alpha=0.12, label="held out")
+        ax.set_xlabel("time (s)"); ax.set_ylabel(ch)
+        ax.legend(fontsize=8, ncol=4)
+    fig.tight_layout()
+    paths.append(directory / "traces.png"); fig.savefig(paths[-1], dpi=110); plt.close(fig)
+    return paths
