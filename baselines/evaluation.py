@@ -1,0 +1,100 @@
+"""Run agents on a batch of seeded episodes and compute the benchmark's metrics.
+
+Every agent (schedule, design, greedy, estimator, RL policy) is evaluated by the same
+function on the same native vector environment, one sub-environment per evaluation
+draw, so all agents see the same draws of temperature, drift and noise (GUIDE §7).
+
+Per-episode metrics (issue 5, "Experiments"):
+
+* ``settle_time_s`` -- first time after which |a_estimate - a_true| stays within
+  ``band_fraction*a_true`` (0.1 %) to the end; ``nan`` if never (censored later);
+* ``integrated_error`` -- the integral of |a_estimate - a_true| over the episode, A/m*s;
+* ``rms_error`` -- RMS of a_estimate - a_true over the episode, A/m;
+* ``final_error`` -- |a_estimate - a_true| at the last step, A/m;
+* ``pe_a_fraction``, ``pe_b_fraction`` -- fraction of steps at which the environment's
+  persistent-excitation test reports 3.1(a) / 3.1(b) (when it reports them).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .environment import EpisodeSpec, make_vector_env, step_info
+
+METRICS = ("settle_time_s", "integrated_error", "rms_error", "final_error", "pe_a_fraction", "pe_b_fraction")
+
+
+def run_episodes(agent, spec: EpisodeSpec, seeds, band_fraction: float = 1e-3, max_batch: int = 64,
+                 keep_traces: int = 0):
+    """Evaluate ``agent`` on one episode per seed. Returns ``(records, traces)``.
+
+    ``records`` is a list of dicts (one per seed, in order) with the seed, the episode
+    length and :data:`METRICS`; ``traces`` holds ``time``, ``field``, ``a_estimate`` and
+    ``a_true`` arrays for the first ``keep_traces`` seeds (for figures).
+    """
+    seeds = [int(s) for s in seeds]
+    records, traces = [], []
+    for start in range(0, len(seeds), max_batch):
+        chunk = seeds[start:start + max_batch]
+        chunk_records, chunk_traces = _run_batch(agent, spec, chunk, band_fraction,
+                                                 max(0, keep_traces - start))
+        records += chunk_records
+        traces += chunk_traces
+    return records, traces
+
+
+def _run_batch(agent, spec, seeds, band_fraction, keep_traces):
+    from .environment import reset_vector_env
+    n = len(seeds)
+    env = make_vector_env(spec, n)
+    try:
+        agent.reset(seeds[0])
+        observations, infos = reset_vector_env(env, seeds)
+        episode_start = np.ones(n, dtype=bool)
+        active = np.ones(n, dtype=bool)
+        columns = {key: [] for key in ("time", "field", "a_estimate", "a_true", "pe_a", "pe_b")}
+        lengths = np.zeros(n, dtype=np.int64)
+        while active.any():
+            actions, _ = agent.predict(observations, episode_start=episode_start, deterministic=True)
+            observations, _, terminated, truncated, infos = env.step(np.asarray(actions, dtype=np.float32))
+            episode_start = np.zeros(n, dtype=bool)
+            values = step_info(infos, n)
+            for key in columns:
+                columns[key].append(np.where(active, values[key], np.nan))
+            lengths += active
+            active &= ~(np.asarray(terminated) | np.asarray(truncated))
+    finally:
+        env.close()
+    data = {key: np.array(v) for key, v in columns.items()}  # (T, n)
+    records, traces = [], []
+    for i, seed in enumerate(seeds):
+        length = int(lengths[i])
+        rows = slice(0, length)
+        time = data["time"][rows, i]
+        estimate, truth = data["a_estimate"][rows, i], data["a_true"][rows, i]
+        records.append(episode_metrics(seed, time, estimate, truth, data["pe_a"][rows, i], data["pe_b"][rows, i],
+                                       spec.dt, band_fraction))
+        if i < keep_traces:
+            traces.append({"seed": seed, "time": time, "field": data["field"][rows, i],
+                           "a_estimate": estimate, "a_true": truth})
+    return records, traces
+
+
+def episode_metrics(seed, time, a_estimate, a_true, pe_a, pe_b, dt, band_fraction=1e-3) -> dict:
+    from experiments.survival import settle_time
+
+    error = a_estimate - a_true
+    return {
+        "seed": int(seed),
+        "steps": int(time.size),
+        "episode_time_s": float(time[-1]) if time.size else 0.0,
+        "settle_time_s": settle_time(time, a_estimate, a_true, band_fraction),
+        "integrated_error": float(np.sum(np.abs(error)) * dt),
+        "rms_error": float(np.sqrt(np.mean(error ** 2))),
+        "final_error": float(abs(error[-1])),
+        "pe_a_fraction": float(np.nanmean(pe_a)) if np.isfinite(pe_a).any() else float("nan"),
+        "pe_b_fraction": float(np.nanmean(pe_b)) if np.isfinite(pe_b).any() else float("nan"),
+    }
+
+
+__all__ = ["METRICS", "run_episodes", "episode_metrics"]

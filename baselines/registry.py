@@ -1,0 +1,74 @@
+"""Build any benchmark agent by name.
+
+Names (the keys of ``experiments/results/summary.json``):
+
+* schedules: ``ramp`` (the paper's, untuned), ``ramp_tuned``, ``sine``, ``chirp``, ``prbs``,
+  ``multisine`` (Schroeder phases), ``random`` -- the tuned ones read their grid-search
+  winner from ``artifacts/tune/<scenario>/<name>.json``;
+* ``optimal_design`` (CMA-ES at the nominal a) and ``optimal_design_prior`` (averaged over
+  the temperature prior), read from ``artifacts/design/<scenario>/<name>.json``;
+* ``greedy_info`` -- the receding-horizon information-maximizing input;
+* estimators as agents on ``Estimation-v0``: ``minmax``, ``gradient``, ``multiple_model``;
+* a path to a trained model (folder with ``model.zip`` + ``config.json``).
+"""
+
+from __future__ import annotations
+
+import json
+import pathlib
+
+from .agents import ScheduleAgent
+from .schedules import TUNING_GRIDS, make_schedule
+
+SCHEDULE_AGENTS = ("ramp", "ramp_tuned", "sine", "chirp", "prbs", "multisine", "random")
+DESIGN_AGENTS = ("optimal_design", "optimal_design_prior")
+ESTIMATOR_AGENTS = ("minmax", "gradient", "multiple_model")
+ADAPTIVE_AGENTS = ("greedy_info",)
+ALL_NAMED_AGENTS = SCHEDULE_AGENTS + DESIGN_AGENTS + ADAPTIVE_AGENTS + ESTIMATOR_AGENTS
+
+
+def default_schedule_params(name: str) -> dict:
+    """The first grid point (``ramp``: the paper's setting)."""
+    from .schedules import grid_points
+
+    return grid_points(TUNING_GRIDS[name])[0]
+
+
+def make_agent(name: str, scenario, artifacts=None):
+    """Agent ``name`` for ``scenario`` (a :class:`~baselines.scenarios.Scenario`)."""
+    artifacts = pathlib.Path(artifacts) if artifacts is not None else None
+    if name in SCHEDULE_AGENTS:
+        params = default_schedule_params(name)
+        tuned = artifacts / "tune" / scenario.name / f"{name}.json" if artifacts else None
+        if name != "ramp" and tuned is not None and tuned.exists():
+            params = json.loads(tuned.read_text())["best"]
+        return ScheduleAgent(make_schedule(name, **params), scenario.limits, scenario.episode_steps, name=name)
+    if name in DESIGN_AGENTS:
+        from .optimal_design import MultisineDesign
+
+        path = artifacts / "design" / scenario.name / f"{name}.json" if artifacts else None
+        if path is None or not path.exists():
+            raise OSError(f"agent {name!r} needs its design: run the 'design' job first (missing {path})")
+        data = json.loads(path.read_text())
+        design = MultisineDesign(tuple(data["coefficients"]), data["period"], data["field_max"])
+        return ScheduleAgent(design, scenario.limits, scenario.episode_steps, name=name)
+    if name == "greedy_info":
+        from .greedy import GreedyInformationAgent
+        from .observation import estimate_reader
+
+        return GreedyInformationAgent(scenario.limits, scenario.theta, scenario.nominal_a,
+                                      estimate_of=estimate_reader(scenario))
+    if name in ESTIMATOR_AGENTS:
+        from .estimator_agents import EstimatorAgent
+
+        return EstimatorAgent(name, scenario)
+    path = pathlib.Path(name)
+    if path.exists():
+        from .rl import PolicyAgent
+
+        return PolicyAgent.load(path)
+    raise ValueError(f"unknown agent {name!r}: not one of {', '.join(ALL_NAMED_AGENTS)} and not a model path")
+
+
+__all__ = ["SCHEDULE_AGENTS", "DESIGN_AGENTS", "ESTIMATOR_AGENTS", "ADAPTIVE_AGENTS", "ALL_NAMED_AGENTS",
+           "make_agent", "default_schedule_params"]

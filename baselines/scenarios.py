@@ -1,0 +1,102 @@
+"""The benchmark's scenarios and its fixed seed sets.
+
+A :class:`Scenario` fixes the environment settings, the common excitation limits and the
+prior of a used by the optimal design. The environment keyword arguments are built by
+:func:`env_kwargs` from plain values so that a scenario can be shipped to another
+process.
+
+Seeds: every agent is evaluated on :data:`HELDOUT_SEEDS` (50 draws of temperature, drift
+and noise, issue 5 "Statistical protocol"). Learning curves use :data:`VALIDATION_SEEDS`
+and schedule tuning :data:`TUNING_SEEDS`; the three sets are disjoint.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .environment import EpisodeSpec
+from .schedules import ExcitationLimits
+
+HELDOUT_SEEDS = tuple(range(100_000, 100_050))
+VALIDATION_SEEDS = tuple(range(200_000, 200_016))
+TUNING_SEEDS = tuple(range(300_000, 300_010))
+
+EXCITATION_ID = "hyst_gym/Excitation-v0"
+ESTIMATION_ID = "hyst_gym/Estimation-v0"
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One benchmark scenario.
+
+    Attributes
+    ----------
+    name : str
+    description : str
+    settings : dict
+        Plain-valued environment settings (see :func:`env_kwargs`).
+    limits : ExcitationLimits
+        Field (A/m), slew (A/m/s) limits and control period (s) shared by every agent.
+    episode_s : float
+        Episode length, s of simulated time.
+    theta : (float, float)
+        The parameter box Theta, A/m.
+    nominal_a : float
+        Nominal a, A/m (the paper's 7012).
+    prior_a : tuple
+        Quantiles of the prior of a over the scenario's temperature range, A/m (used by
+        the prior-averaged optimal design).
+    """
+
+    name: str
+    description: str
+    settings: dict = field(default_factory=dict)
+    limits: ExcitationLimits = ExcitationLimits()
+    episode_s: float = 6.0
+    theta: tuple = (6300.0, 7300.0)
+    nominal_a: float = 7012.0
+    prior_a: tuple = (7012.0,)
+
+    @property
+    def episode_steps(self) -> int:
+        return int(round(self.episode_s / self.limits.dt))
+
+    def spec(self, env_id: str = EXCITATION_ID) -> EpisodeSpec:
+        return EpisodeSpec(env_id, env_kwargs(self, env_id), self.limits.dt)
+
+
+def env_kwargs(scenario: Scenario, env_id: str) -> dict:
+    """Keyword arguments for ``gymnasium.make(env_id, ...)`` in this scenario.
+
+    Filled in from the envs layer's configuration once it is available; see
+    :mod:`baselines.environment` for how they are used.
+    """
+    return dict(scenario.settings)
+
+
+_PAPER_LIMITS = ExcitationLimits(field_max=1.2e5, slew_max=1.0e5, dt=0.01)
+_DRIFT_LIMITS = ExcitationLimits(field_max=1.2e5, slew_max=1.0e5, dt=0.05)
+
+SCENARIOS = {
+    "paper": Scenario("paper", "Paper §4.1: first-order plant, a = 7012 fixed, thetahat(0) = 6990",
+                      {"transducer": "first_order", "temperature": "fixed", "a_true": 7012.0,
+                       "a_estimate0": 6990.0}, _PAPER_LIMITS, 6.0),
+    "drift": Scenario("drift", "Joule heating and ambient drift, 60 s episodes",
+                      {"transducer": "first_order", "temperature": "drifting"}, _DRIFT_LIMITS, 60.0,
+                      prior_a=tuple(np.linspace(6800.0, 7300.0, 5))),
+    "lumped": Scenario("lumped", "Lumped transducer (13), vector estimator (24)-(25)",
+                       {"transducer": "lumped", "temperature": "fixed", "a_true": 7012.0,
+                        "a_estimate0": 6990.0}, _PAPER_LIMITS, 6.0),
+}
+
+__all__ = ["HELDOUT_SEEDS", "VALIDATION_SEEDS", "TUNING_SEEDS", "EXCITATION_ID", "ESTIMATION_ID", "Scenario",
+           "SCENARIOS", "env_kwargs", "scenario_spec"]
+
+
+def scenario_spec(name: str, env_id: str = EXCITATION_ID) -> EpisodeSpec:
+    try:
+        return SCENARIOS[name].spec(env_id)
+    except KeyError:
+        raise ValueError(f"unknown scenario {name!r}; expected one of {sorted(SCENARIOS)}") from None

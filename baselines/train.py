@@ -1,0 +1,188 @@
+"""``hyst-gym train``: train a PPO or SAC excitation policy (Stable-Baselines3).
+
+Writes into ``--out``: ``model.zip`` and ``config.json`` beside it (every setting needed
+to rebuild the run), ``checkpoints/`` (every ``--checkpoint-every`` steps), ``tb/``
+(TensorBoard logs) and ``learning_curve.csv`` (the convergence metrics on a fixed
+validation set, disjoint from the benchmark's held-out draws, against env steps).
+``--resume`` continues from the newest checkpoint in ``--out`` up to ``--timesteps``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import pathlib
+import re
+import time
+
+import numpy as np
+
+from .environment import EpisodeSpec, make_sb3_vec_env
+from .rl import ALGORITHMS, PolicyAgent, algorithm_class
+from .scenarios import SCENARIOS, VALIDATION_SEEDS, scenario_spec
+
+#: Default hyperparameters (small networks: the observation is a short stacked vector).
+DEFAULT_HYPERPARAMS = {
+    "ppo": {"n_steps": 256, "batch_size": 256, "n_epochs": 5, "learning_rate": 3e-4, "gamma": 0.99,
+            "gae_lambda": 0.95, "ent_coef": 0.0, "policy_kwargs": {"net_arch": [64, 64]}},
+    "sac": {"buffer_size": 100_000, "learning_starts": 1000, "batch_size": 256, "learning_rate": 3e-4,
+            "gamma": 0.99, "train_freq": 1, "gradient_steps": 1, "policy_kwargs": {"net_arch": [64, 64]}},
+}
+
+
+def configure_parser(parser):
+    parser.add_argument("--algo", choices=ALGORITHMS, required=True)
+    parser.add_argument("--env", default="hyst_gym/Excitation-v0", help="registered environment id")
+    parser.add_argument("--scenario", choices=sorted(SCENARIOS), default="paper",
+                        help="environment settings (default: the paper's case)")
+    parser.add_argument("--timesteps", type=int, required=True, help="total environment steps")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", required=True, help="output folder")
+    parser.add_argument("--n-envs", type=int, default=8, help="parallel sub-environments (default 8)")
+    parser.add_argument("--n-stack", type=int, default=8, help="frames of history the policy sees (1 = none)")
+    parser.add_argument("--checkpoint-every", type=int, default=10_000, help="env steps between checkpoints")
+    parser.add_argument("--eval-every", type=int, default=0, help="env steps between learning-curve points (0: off)")
+    parser.add_argument("--eval-episodes", type=int, default=8)
+    parser.add_argument("--hyperparams", default="{}", help="JSON overrides of the algorithm's hyperparameters")
+    parser.add_argument("--resume", action="store_true", help="continue from the newest checkpoint in --out")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _positive(name, value):
+    if value <= 0:
+        raise ValueError(f"--{name} must be > 0, got {value}")
+
+
+def main(args) -> int:
+    try:
+        overrides = json.loads(args.hyperparams)
+    except json.JSONDecodeError as error:
+        raise ValueError(f"--hyperparams is not valid JSON: {error}") from None
+    train(args.algo, scenario_spec(args.scenario, args.env), args.timesteps, args.seed, args.out,
+          n_envs=args.n_envs, n_stack=args.n_stack, checkpoint_every=args.checkpoint_every,
+          eval_every=args.eval_every, eval_episodes=args.eval_episodes, hyperparams=overrides,
+          resume=args.resume, progress=not args.no_progress, scenario=args.scenario)
+    return 0
+
+
+def _latest_checkpoint(out: pathlib.Path):
+    found = []
+    for path in (out / "checkpoints").glob("model_*_steps.zip"):
+        match = re.search(r"model_(\d+)_steps\.zip$", path.name)
+        if match:
+            found.append((int(match.group(1)), path))
+    return max(found)[1] if found else None
+
+
+class _Callbacks:
+    """Progress bar, learning curve and checkpoints as one SB3 callback (built lazily)."""
+
+    @staticmethod
+    def build(total, out, spec, n_stack, eval_every, eval_episodes, checkpoint_every, n_envs, progress, start):
+        from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
+        from tqdm.auto import tqdm
+
+        class Progress(BaseCallback):
+            def _on_training_start(self):
+                self.bar = tqdm(total=total, initial=self.model.num_timesteps, unit="step", disable=not progress,
+                                desc="train")
+
+            def _on_step(self):
+                self.bar.n = self.model.num_timesteps
+                self.bar.refresh() if self.n_calls % 50 == 0 else None
+                return True
+
+            def _on_training_end(self):
+                self.bar.n = self.model.num_timesteps
+                self.bar.close()
+
+        class LearningCurve(BaseCallback):
+            def __init__(self):
+                super().__init__()
+                self.next_at = start + eval_every if eval_every else None
+
+            def _on_step(self):
+                if self.next_at is not None and self.model.num_timesteps >= self.next_at:
+                    self.next_at += eval_every
+                    record_learning_point(self.model, out, spec, n_stack, eval_episodes)
+                return True
+
+        callbacks = [Progress(), LearningCurve()]
+        if checkpoint_every > 0:
+            callbacks.append(CheckpointCallback(max(checkpoint_every // n_envs, 1), str(out / "checkpoints"),
+                                                name_prefix="model"))
+        return CallbackList(callbacks)
+
+
+def record_learning_point(model, out, spec, n_stack, episodes, wall_start=None):
+    """Append one learning-curve row (validation IQM of the convergence metrics)."""
+    from experiments.stats import iqm
+    from experiments.survival import censor
+
+    from .evaluation import run_episodes
+
+    records, _ = run_episodes(PolicyAgent(model, n_stack), spec, VALIDATION_SEEDS[:episodes])
+    settle, _ = censor([r["settle_time_s"] for r in records], max(r["episode_time_s"] for r in records))
+    row = {"env_steps": int(model.num_timesteps), "wall_s": round(time.time() - _WALL_START.get(out, time.time()), 2),
+           "settle_time_iqm_s": iqm(settle), "rms_error_iqm": iqm([r["rms_error"] for r in records]),
+           "success_rate": float(np.mean([np.isfinite(r["settle_time_s"]) for r in records]))}
+    path = out / "learning_curve.csv"
+    new = not path.exists()
+    with path.open("a", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(row))
+        if new:
+            writer.writeheader()
+        writer.writerow(row)
+    return row
+
+
+_WALL_START: dict = {}
+
+
+def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=8, checkpoint_every=10_000,
+          eval_every=0, eval_episodes=8, hyperparams=None, resume=False, progress=True, scenario=None):
+    """Train and save; returns the path of ``model.zip``. See the module docstring."""
+    import torch
+
+    for name, value in (("timesteps", timesteps), ("n-envs", n_envs), ("n-stack", n_stack)):
+        _positive(name, value)
+    torch.set_num_threads(1)
+    out = pathlib.Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    _WALL_START[out] = time.time()
+    params = {**DEFAULT_HYPERPARAMS[algo], **(hyperparams or {})}
+    config = {"algo": algo, "env_id": spec.env_id, "env_kwargs": spec.env_kwargs, "dt": spec.dt,
+              "scenario": scenario, "timesteps": int(timesteps), "seed": int(seed), "n_envs": int(n_envs),
+              "n_stack": int(n_stack), "hyperparams": params, "checkpoint_every": int(checkpoint_every),
+              "eval_every": int(eval_every), "eval_episodes": int(eval_episodes)}
+    env = make_sb3_vec_env(spec, n_envs, seed, n_stack)
+    cls = algorithm_class(algo)
+    checkpoint = _latest_checkpoint(out) if resume else None
+    if resume and checkpoint is None and (out / "model.zip").exists():
+        checkpoint = out / "model.zip"
+    if checkpoint is not None:
+        model = cls.load(checkpoint, env=env, device="cpu", tensorboard_log=str(out / "tb"))
+        print(f"[train] resuming from {checkpoint} at {model.num_timesteps} steps")
+    else:
+        if resume:
+            print(f"[train] --resume: no checkpoint in {out}, starting fresh")
+        model = cls("MlpPolicy", env, seed=int(seed), device="cpu", verbose=0, tensorboard_log=str(out / "tb"),
+                    **params)
+    (out / "config.json").write_text(json.dumps(config, indent=2))
+    remaining = int(timesteps) - int(model.num_timesteps)
+    start_wall = time.time()
+    if remaining > 0:
+        callback = _Callbacks.build(int(timesteps), out, spec, n_stack, eval_every, eval_episodes,
+                                    checkpoint_every, n_envs, progress, int(model.num_timesteps))
+        model.learn(remaining, callback=callback, reset_num_timesteps=checkpoint is None,
+                    tb_log_name=f"{algo}_seed{seed}")
+    model.save(out / "model.zip")
+    env.close()
+    config["trained_steps"] = int(model.num_timesteps)
+    config["wall_s_last_session"] = round(time.time() - start_wall, 2)
+    (out / "config.json").write_text(json.dumps(config, indent=2))
+    print(f"[train] {algo} seed {seed}: {model.num_timesteps} steps, saved {out / 'model.zip'}")
+    return out / "model.zip"
+
+
+__all__ = ["DEFAULT_HYPERPARAMS", "configure_parser", "main", "train", "record_learning_point"]

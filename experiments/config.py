@@ -1,0 +1,94 @@
+"""The declared list of experiment configurations (issue 5, "Experiments").
+
+:func:`declared_jobs` returns the jobs of a *profile* in dependency stages: stage 0
+tunes the schedules, designs the optimal inputs and trains the RL policies; stage 1
+evaluates every agent on the shared held-out draws. Profiles:
+
+* ``full`` -- the committed run (``experiments/results/``), sized for about 30-40 min on
+  2 CPU cores;
+* ``smoke`` -- the same pipeline at toy size, for the tests and a quick check.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from baselines.registry import DESIGN_AGENTS, ESTIMATOR_AGENTS, SCHEDULE_AGENTS
+
+
+@dataclass(frozen=True)
+class Job:
+    """One unit of work. ``kind`` is ``tune``, ``design``, ``train`` or ``eval``.
+
+    ``agent`` is a baseline name, or ``<algo>_<variant>`` for RL (``ppo_stack8``); ``run``
+    is the training seed (0 for deterministic baselines); ``options`` holds sizes.
+    """
+
+    kind: str
+    scenario: str
+    agent: str
+    run: int = 0
+    options: tuple = field(default_factory=tuple)
+
+    @property
+    def key(self) -> str:
+        return f"{self.kind}/{self.scenario}/{self.agent}/run{self.run}"
+
+    def option(self, name, default=None):
+        return dict(self.options).get(name, default)
+
+
+#: RL configurations: name -> (algo, n_stack, extra hyperparameters). ``stack8`` gives the
+#: policy 8 frames of history; ``stack1`` (no history) is the history ablation.
+RL_CONFIGS = {
+    "ppo_stack8": ("ppo", 8, ()),
+    "ppo_stack1": ("ppo", 1, ()),
+    "sac_stack8": ("sac", 8, ()),
+}
+
+PROFILES = {
+    "full": {"rl_seeds": 5, "timesteps": {"ppo": 60_000, "sac": 12_000}, "episodes": 50,
+             "tuning_episodes": 10, "design_evaluations": 400, "rl_scenarios": ("paper", "drift"),
+             "drift_timesteps": {"ppo": 60_000, "sac": 12_000}, "eval_every": 10_000, "eval_episodes": 8,
+             "rl_configs": ("ppo_stack8", "ppo_stack1", "sac_stack8"), "drift_rl_configs": ("ppo_stack8",)},
+    "smoke": {"rl_seeds": 1, "timesteps": {"ppo": 512, "sac": 300}, "episodes": 3, "tuning_episodes": 2,
+              "design_evaluations": 30, "rl_scenarios": ("paper",), "drift_timesteps": {"ppo": 512, "sac": 300},
+              "eval_every": 0, "eval_episodes": 2, "rl_configs": ("ppo_stack8",), "drift_rl_configs": ()},
+}
+
+SCENARIO_NAMES = ("paper", "drift", "lumped")
+
+
+def declared_jobs(profile: str = "full", scenarios=SCENARIO_NAMES):
+    """Stages (lists of :class:`Job`) of ``profile``, restricted to ``scenarios``."""
+    try:
+        p = PROFILES[profile]
+    except KeyError:
+        raise ValueError(f"unknown profile {profile!r}; expected one of {sorted(PROFILES)}") from None
+    prep, evals = [], []
+    for scenario in scenarios:
+        sizes = (("episodes", p["tuning_episodes"]),)
+        for name in SCHEDULE_AGENTS:
+            if name != "ramp":
+                prep.append(Job("tune", scenario, name, 0, sizes))
+            evals.append(Job("eval", scenario, name, 0, (("episodes", p["episodes"]),)))
+        for name in DESIGN_AGENTS:
+            prep.append(Job("design", scenario, name, 0, (("evaluations", p["design_evaluations"]),)))
+            evals.append(Job("eval", scenario, name, 0, (("episodes", p["episodes"]),)))
+        evals.append(Job("eval", scenario, "greedy_info", 0, (("episodes", p["episodes"]),)))
+        for name in ESTIMATOR_AGENTS:
+            evals.append(Job("eval", scenario, name, 0, (("episodes", p["episodes"]),)))
+        if scenario in p["rl_scenarios"]:
+            configs = p["rl_configs"] if scenario == "paper" else p["drift_rl_configs"]
+            steps = p["timesteps"] if scenario == "paper" else p["drift_timesteps"]
+            for config in configs:
+                algo = RL_CONFIGS[config][0]
+                for seed in range(p["rl_seeds"]):
+                    prep.append(Job("train", scenario, config, seed,
+                                    (("timesteps", steps[algo]), ("eval_every", p["eval_every"]),
+                                     ("eval_episodes", p["eval_episodes"]))))
+                    evals.append(Job("eval", scenario, config, seed, (("episodes", p["episodes"]),)))
+    return [prep, evals]
+
+
+__all__ = ["Job", "RL_CONFIGS", "PROFILES", "SCENARIO_NAMES", "declared_jobs"]

@@ -1,0 +1,499 @@
+"""Regenerate every benchmark table and figure from the raw results.
+
+    python -m experiments.report [--results experiments/results] [--readme README.md]
+
+Reads ``raw/`` (see :mod:`experiments.run`) and writes
+
+* ``summary.json`` -- scenario -> agent -> metric -> ``{"iqm", "ci95", "n"}`` for the
+  metrics ``settle_time_s`` (never-settled runs censored at the episode length) and
+  ``rms_error`` (A/m), plus ``_meta`` (targets, probabilities of improvement, compute);
+* ``RESULTS.md`` (beside ``results/``) -- the tables, target checks and compute;
+* PNG figures under ``figures/`` (and copies for the README in ``docs/figures/benchmark/``);
+* with ``--readme``, the README's ``benchmark`` section (between its markers only).
+
+Nothing here is typed by hand: rerun it after :mod:`experiments.run` and every number
+follows the raw files.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import pathlib
+import shutil
+import sys
+from collections import defaultdict
+
+import numpy as np
+
+from .stats import iqm, probability_of_improvement, probability_of_improvement_ci, summarize
+from .survival import censor, kaplan_meier
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+DEFAULT_RESULTS = ROOT / "experiments" / "results"
+#: summary.json agent keys of the main RL configurations (declared before the run).
+RL_MAIN = {"ppo": "ppo_stack8", "sac": "sac_stack8"}
+RL_CONFIG_PREFIXES = ("ppo_", "sac_")
+ESTIMATORS = ("minmax", "gradient", "multiple_model")
+
+
+def _float(value):
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def load_episodes(raw: pathlib.Path) -> dict:
+    """scenario -> agent -> run -> list of episode dicts (sorted by seed)."""
+    table = defaultdict(lambda: defaultdict(dict))
+    for path in sorted((raw / "eval").glob("*/*/run*.csv")):
+        with path.open() as handle:
+            rows = list(csv.DictReader(handle))
+        if not rows:
+            continue
+        for row in rows:
+            for key, value in row.items():
+                if key not in ("scenario", "agent", "env"):
+                    row[key] = _float(value)
+        rows.sort(key=lambda r: r["seed"])
+        table[path.parent.parent.name][path.parent.name][int(path.stem[3:])] = rows
+    return table
+
+
+def score_matrix(runs: dict, metric: str, episode_s: float) -> np.ndarray:
+    """(runs, draws) matrix of a metric; settle times censored at ``episode_s``."""
+    matrix = np.array([[r[metric] for r in runs[k]] for k in sorted(runs)], dtype=np.float64)
+    if metric == "settle_time_s":
+        matrix = censor(matrix, episode_s)[0]
+    return matrix
+
+
+def _is_rl(agent):
+    return agent.startswith(RL_CONFIG_PREFIXES)
+
+
+def _episode_s(runs):
+    return max(r["episode_time_s"] for rows in runs.values() for r in rows)
+
+
+def summarize_all(table, n_boot=2000):
+    summary, success = {}, {}
+    for scenario, agents in sorted(table.items()):
+        summary[scenario], success[scenario] = {}, {}
+        for agent, runs in sorted(agents.items()):
+            episode_s = _episode_s(runs)
+            entry = {metric: summarize(score_matrix(runs, metric, episode_s), n_boot=n_boot)
+                     for metric in ("settle_time_s", "rms_error")}
+            summary[scenario][agent] = entry
+            success[scenario][agent] = float(np.mean([np.isfinite(r["settle_time_s"])
+                                                      for rows in runs.values() for r in rows]))
+        for key, config in RL_MAIN.items():
+            if config in summary[scenario]:
+                summary[scenario][key] = summary[scenario][config]
+                success[scenario][key] = success[scenario][config]
+    return summary, success
+
+
+def best_baseline(summary_scenario, metric, exclude_estimators=True):
+    """The non-RL excitation agent with the lowest IQM of ``metric``."""
+    candidates = {a: v for a, v in summary_scenario.items()
+                  if not _is_rl(a) and a not in RL_MAIN and not (exclude_estimators and a in ESTIMATORS)}
+    return min(candidates, key=lambda a: candidates[a][metric]["iqm"]) if candidates else None
+
+
+def best_schedule(summary_scenario, metric):
+    from baselines.registry import SCHEDULE_AGENTS
+
+    candidates = {a: v for a, v in summary_scenario.items() if a in SCHEDULE_AGENTS}
+    return min(candidates, key=lambda a: candidates[a][metric]["iqm"]) if candidates else None
+
+
+def targets(table, summary):
+    """The issue's three targets, evaluated; each with the numbers behind it."""
+    out = {}
+    paper = summary.get("paper", {})
+    rl_paper = [a for a in paper if _is_rl(a)]
+    if rl_paper and "ramp" in paper:
+        best_rl = min(rl_paper, key=lambda a: paper[a]["settle_time_s"]["iqm"])
+        ramp = paper["ramp"]["settle_time_s"]
+        rl = paper[best_rl]["settle_time_s"]
+        out["paper_settle_half_ramp"] = {"best_rl": best_rl, "rl_iqm": rl["iqm"], "rl_ci95": rl["ci95"],
+                                         "ramp_iqm": ramp["iqm"], "ramp_ci95": ramp["ci95"],
+                                         "met": bool(rl["iqm"] <= 0.5 * ramp["iqm"])}
+        design = paper.get("optimal_design", {}).get("settle_time_s")
+        if design:
+            episode_s = _episode_s(table["paper"][best_rl])
+            poi = probability_of_improvement(score_matrix(table["paper"][best_rl], "settle_time_s", episode_s),
+                                             score_matrix(table["paper"]["optimal_design"], "settle_time_s", episode_s))
+            out["paper_vs_optimal_design"] = {"best_rl": best_rl, "rl_iqm": rl["iqm"], "rl_ci95": rl["ci95"],
+                                              "design_iqm": design["iqm"], "design_ci95": design["ci95"],
+                                              "probability_rl_better": poi,
+                                              "rl_beats_design": bool(rl["ci95"][1] < design["ci95"][0])}
+    drift = summary.get("drift", {})
+    rl_drift = [a for a in drift if _is_rl(a)]
+    schedule = best_schedule(drift, "rms_error")
+    if rl_drift and schedule:
+        best_rl = min(rl_drift, key=lambda a: drift[a]["rms_error"]["iqm"])
+        out["drift_rms_half_best_schedule"] = {
+            "best_rl": best_rl, "rl_iqm": drift[best_rl]["rms_error"]["iqm"],
+            "rl_ci95": drift[best_rl]["rms_error"]["ci95"], "best_schedule": schedule,
+            "schedule_iqm": drift[schedule]["rms_error"]["iqm"], "schedule_ci95": drift[schedule]["rms_error"]["ci95"],
+            "met": bool(drift[best_rl]["rms_error"]["iqm"] <= 0.5 * drift[schedule]["rms_error"]["iqm"])}
+    return out
+
+
+def improvements(table, summary):
+    """Probability that each RL config improves on the best non-RL excitation baseline."""
+    out = {}
+    for scenario, agents in table.items():
+        for metric in ("settle_time_s", "rms_error"):
+            baseline = best_baseline(summary[scenario], metric)
+            if baseline is None:
+                continue
+            episode_s = _episode_s(agents[baseline])
+            y = score_matrix(agents[baseline], metric, episode_s)
+            for agent in agents:
+                if _is_rl(agent):
+                    x = score_matrix(agents[agent], metric, episode_s)
+                    out.setdefault(scenario, {}).setdefault(agent, {})[metric] = {
+                        "baseline": baseline, "probability": probability_of_improvement(x, y),
+                        "ci95": list(probability_of_improvement_ci(x, y, n_boot=500))}
+    return out
+
+
+def compute_used(raw):
+    jobs = [json.loads(line) for line in (raw / "jobs.jsonl").read_text().splitlines() if line.strip()] \
+        if (raw / "jobs.jsonl").exists() else []
+    latest = {}
+    for job in jobs:
+        latest[job["job"]] = job
+    by_kind = defaultdict(lambda: {"jobs": 0, "env_steps": 0, "cpu_wall_s": 0.0})
+    for job in latest.values():
+        entry = by_kind[job["kind"]]
+        entry["jobs"] += 1
+        entry["env_steps"] += job["env_steps"]
+        entry["cpu_wall_s"] += job["wall_s"]
+    machine = json.loads((raw / "machine.json").read_text()) if (raw / "machine.json").exists() else {}
+    run_wall = json.loads((raw / "run_wall.json").read_text()) if (raw / "run_wall.json").exists() else {}
+    return {"by_kind": dict(by_kind), "machine": machine, "run_wall": run_wall,
+            "total_env_steps": int(sum(v["env_steps"] for v in by_kind.values()))}
+
+
+# ----------------------------------------------------------------------------- figures
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def figure_survival(table, scenario, path):
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    agents = table.get(scenario, {})
+    for agent in sorted(agents):
+        runs = agents[agent]
+        settle = np.array([r["settle_time_s"] for rows in runs.values() for r in rows])
+        times, observed = censor(settle, _episode_s(runs))
+        t, s = kaplan_meier(times, observed)
+        ax.step(np.r_[t, _episode_s(runs)], np.r_[s, s[-1]], where="post", label=agent,
+                lw=2.2 if _is_rl(agent) else 1.2, ls="-" if _is_rl(agent) or agent in ("ramp",) else "--")
+    ax.set(xlabel="time (s)", ylabel="P(not yet settled in 0.1 % band)", title=f"Survival of settle time: {scenario}",
+           ylim=(-0.02, 1.02))
+    ax.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def figure_iqm(summary, scenario, metric, path):
+    plt = _plt()
+    agents = {a: v for a, v in summary.get(scenario, {}).items() if a not in RL_MAIN}
+    if not agents:
+        return
+    names = sorted(agents, key=lambda a: agents[a][metric]["iqm"])
+    values = np.array([agents[a][metric]["iqm"] for a in names])
+    low = values - np.array([agents[a][metric]["ci95"][0] for a in names])
+    high = np.array([agents[a][metric]["ci95"][1] for a in names]) - values
+    fig, ax = plt.subplots(figsize=(6.5, 0.3 * len(names) + 1.2))
+    colors = ["C3" if _is_rl(a) else ("C2" if a.startswith("optimal") else "C0") for a in names]
+    ax.barh(names, values, xerr=[low, high], color=colors, capsize=2)
+    ax.set(xlabel=f"IQM {metric} (95 % stratified bootstrap CI)", title=scenario)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def figure_learning_curves(raw, scenario, path):
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    any_curve = False
+    for config_dir in sorted((raw / "train" / scenario).glob("*")):
+        curves = []
+        for curve_path in sorted(config_dir.glob("seed*/learning_curve.csv")):
+            with curve_path.open() as handle:
+                rows = list(csv.DictReader(handle))
+            if rows:
+                curves.append(np.array([[float(r["env_steps"]), float(r["settle_time_iqm_s"] if scenario != "drift"
+                                                                        else r["rms_error_iqm"])] for r in rows]))
+        if not curves:
+            continue
+        any_curve = True
+        length = min(len(c) for c in curves)
+        stack = np.stack([c[:length] for c in curves])
+        steps, values = stack[0, :, 0], stack[:, :, 1]
+        ax.plot(steps, np.median(values, axis=0), label=f"{config_dir.name} (median of {len(curves)} seeds)")
+        ax.fill_between(steps, values.min(axis=0), values.max(axis=0), alpha=0.2)
+    if not any_curve:
+        plt.close(fig)
+        return
+    ax.set(xlabel="environment steps", ylabel="validation IQM " + ("RMS error (A/m)" if scenario == "drift"
+                                                                    else "settle time (s)"),
+           title=f"Learning curves: {scenario}")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _trace(raw, scenario, agent, run=0, index=0):
+    path = raw / "eval" / scenario / agent / f"run{run}.npz"
+    if not path.exists():
+        return None
+    data = np.load(path)
+    if f"time_{index}" not in data:
+        return None
+    return {k: data[f"{k}_{index}"] for k in ("time", "field", "a_estimate", "a_true")}
+
+
+def figure_traces(raw, table, scenario, agents, path):
+    plt = _plt()
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 5.5), sharex=True)
+    plotted = False
+    for agent in agents:
+        trace = _trace(raw, scenario, agent)
+        if trace is None:
+            continue
+        plotted = True
+        top.plot(trace["time"], trace["field"], label=agent, lw=1)
+        line, = bottom.plot(trace["time"], trace["a_estimate"], label=agent, lw=1)
+        if agent == agents[0]:
+            bottom.plot(trace["time"], trace["a_true"], "k--", lw=1.5, label="a_true")
+    if not plotted:
+        plt.close(fig)
+        return
+    top.set(ylabel="field H (A/m)", title=f"{scenario}: input and estimate, first held-out draw")
+    bottom.set(xlabel="time (s)", ylabel="a estimate (A/m)")
+    top.legend(fontsize=6, ncol=3)
+    bottom.legend(fontsize=6, ncol=3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def figure_pe(table, scenario, path):
+    plt = _plt()
+    agents = table.get(scenario, {})
+    names, a_frac, b_frac = [], [], []
+    for agent in sorted(agents):
+        rows = [r for rr in agents[agent].values() for r in rr]
+        pa, pb = np.array([r["pe_a_fraction"] for r in rows]), np.array([r["pe_b_fraction"] for r in rows])
+        if np.isfinite(pa).any():
+            names.append(agent)
+            a_frac.append(np.nanmean(pa))
+            b_frac.append(np.nanmean(pb))
+    if not names:
+        return
+    plt_ = plt
+    fig, ax = plt_.subplots(figsize=(6.5, 0.3 * len(names) + 1.2))
+    y = np.arange(len(names))
+    ax.barh(y - 0.2, a_frac, 0.4, label="3.1(a)")
+    ax.barh(y + 0.2, b_frac, 0.4, label="3.1(b)")
+    ax.set_yticks(y, names)
+    ax.set(xlabel="fraction of time the condition holds", title=f"Persistent excitation: {scenario}")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt_.close(fig)
+
+
+# ----------------------------------------------------------------------------- markdown
+
+
+def _fmt(entry, digits=3):
+    return f"{entry['iqm']:.{digits}g} [{entry['ci95'][0]:.{digits}g}, {entry['ci95'][1]:.{digits}g}]"
+
+
+def markdown_tables(summary, success, poi, table):
+    lines = []
+    for scenario in summary:
+        agents = {a: v for a, v in summary[scenario].items() if a not in RL_MAIN}
+        episode_s = max(_episode_s(runs) for runs in table[scenario].values())
+        lines += [f"### Scenario `{scenario}` (episodes of {episode_s:g} s, {len(agents)} agents)", "",
+                  "| agent | runs x draws | settle time IQM (s) [95 % CI] | success | RMS error IQM (A/m) [95 % CI] | "
+                  "P(improve) settle | P(improve) RMS |", "|---|---|---|---|---|---|---|"]
+        for agent in sorted(agents, key=lambda a: agents[a]["settle_time_s"]["iqm"]):
+            runs = table[scenario][agent]
+            p = poi.get(scenario, {}).get(agent, {})
+            p_s = f"{p['settle_time_s']['probability']:.2f} vs {p['settle_time_s']['baseline']}" if "settle_time_s" in p else ""
+            p_r = f"{p['rms_error']['probability']:.2f} vs {p['rms_error']['baseline']}" if "rms_error" in p else ""
+            lines.append(f"| {'**' + agent + '**' if _is_rl(agent) else agent} | {len(runs)} x {len(runs[min(runs)])} | "
+                         f"{_fmt(agents[agent]['settle_time_s'])} | {success[scenario][agent]:.0%} | "
+                         f"{_fmt(agents[agent]['rms_error'])} | {p_s} | {p_r} |")
+        lines.append("")
+    return lines
+
+
+def markdown_targets(tgt):
+    lines = []
+    t = tgt.get("paper_settle_half_ramp")
+    if t:
+        lines.append(f"- **Paper scenario, settle time <= half the ramp's:** best RL config `{t['best_rl']}` "
+                     f"IQM {t['rl_iqm']:.3g} s [{t['rl_ci95'][0]:.3g}, {t['rl_ci95'][1]:.3g}] vs ramp "
+                     f"{t['ramp_iqm']:.3g} s [{t['ramp_ci95'][0]:.3g}, {t['ramp_ci95'][1]:.3g}]: "
+                     f"**{'met' if t['met'] else 'NOT met'}**.")
+    else:
+        lines.append("- Paper scenario target: no RL results in this run.")
+    t = tgt.get("drift_rms_half_best_schedule")
+    if t:
+        lines.append(f"- **Drift scenario, RMS error <= half the best schedule's:** best RL config `{t['best_rl']}` "
+                     f"IQM {t['rl_iqm']:.3g} A/m [{t['rl_ci95'][0]:.3g}, {t['rl_ci95'][1]:.3g}] vs best schedule "
+                     f"`{t['best_schedule']}` {t['schedule_iqm']:.3g} A/m [{t['schedule_ci95'][0]:.3g}, "
+                     f"{t['schedule_ci95'][1]:.3g}]: **{'met' if t['met'] else 'NOT met'}**.")
+    else:
+        lines.append("- Drift scenario target: no RL results in this run.")
+    t = tgt.get("paper_vs_optimal_design")
+    if t:
+        verdict = ("RL beats the optimal design (intervals separate)" if t["rl_beats_design"] else
+                   "RL does **not** beat the optimal design (intervals overlap or RL is worse)")
+        lines.append(f"- **Against the open-loop optimal design (paper):** `{t['best_rl']}` {t['rl_iqm']:.3g} s "
+                     f"[{t['rl_ci95'][0]:.3g}, {t['rl_ci95'][1]:.3g}] vs `optimal_design` {t['design_iqm']:.3g} s "
+                     f"[{t['design_ci95'][0]:.3g}, {t['design_ci95'][1]:.3g}]; P(RL better) = "
+                     f"{t['probability_rl_better']:.2f}. {verdict}.")
+    return lines
+
+
+def markdown_compute(compute):
+    m = compute["machine"]
+    lines = [f"Machine: {m.get('platform', '?')}, {m.get('processor', '?')}, {m.get('cpu_count', '?')} CPU cores "
+             f"(shared with other work while it ran), {m.get('workers', '?')} worker processes, backend "
+             f"`{m.get('backend', '?')}`, profile `{m.get('profile', '?')}`.", "",
+             "| job kind | jobs | env steps | summed job wall time (s) |", "|---|---|---|---|"]
+    for kind, entry in sorted(compute["by_kind"].items()):
+        lines.append(f"| {kind} | {entry['jobs']} | {entry['env_steps']:,} | {entry['cpu_wall_s']:.0f} |")
+    lines.append(f"| **total** | {sum(e['jobs'] for e in compute['by_kind'].values())} | "
+                 f"{compute['total_env_steps']:,} | {sum(e['cpu_wall_s'] for e in compute['by_kind'].values()):.0f} |")
+    if compute["run_wall"]:
+        lines += ["", f"Wall time of the whole run: {compute['run_wall'].get('wall_s', 0):.0f} s."]
+    return lines
+
+
+def write_report(results=DEFAULT_RESULTS, readme=None, n_boot=2000):
+    results = pathlib.Path(results)
+    raw = results / "raw"
+    table = load_episodes(raw)
+    if not table:
+        raise OSError(f"no evaluation results under {raw / 'eval'}; run python -m experiments.run first")
+    summary, success = summarize_all(table, n_boot)
+    poi = improvements(table, summary)
+    tgt = targets(table, summary)
+    compute = compute_used(raw)
+    (results / "summary.json").write_text(json.dumps(
+        {**summary, "_meta": {"success_rate": success, "probability_of_improvement": poi, "targets": tgt,
+                              "compute": compute, "settle_band": "0.1 % of a_true",
+                              "censoring": "never-settled runs count as the episode length"}}, indent=2))
+    figures = results / "figures"
+    figures.mkdir(parents=True, exist_ok=True)
+    made = []
+    for scenario in table:
+        for name, make in ((f"survival_{scenario}.png", lambda p: figure_survival(table, scenario, p)),
+                           (f"iqm_settle_{scenario}.png", lambda p: figure_iqm(summary, scenario, "settle_time_s", p)),
+                           (f"iqm_rms_{scenario}.png", lambda p: figure_iqm(summary, scenario, "rms_error", p)),
+                           (f"learning_{scenario}.png", lambda p: figure_learning_curves(raw, scenario, p)),
+                           (f"pe_{scenario}.png", lambda p: figure_pe(table, scenario, p))):
+            make(figures / name)
+            if (figures / name).exists():
+                made.append(name)
+        agents = [a for a in ("ramp", "optimal_design", "greedy_info", "ppo_stack8", "sac_stack8")
+                  if a in table[scenario]]
+        figure_traces(raw, table, scenario, agents, figures / f"traces_{scenario}.png")
+        if (figures / f"traces_{scenario}.png").exists():
+            made.append(f"traces_{scenario}.png")
+    lines = ["# Benchmark results", "",
+             "Generated by `python -m experiments.report` from the raw per-episode files in "
+             "`experiments/results/raw/` (written by `python -m experiments.run`). Do not edit by hand.", "",
+             "Protocol: every agent is evaluated on the same held-out draws (seeds 100000-100049); IQM with a 95 % "
+             "stratified-bootstrap interval (strata = draws, runs = training seeds resampled within each draw); "
+             "settle time = first time after which |a_estimate - a_true| stays within 0.1 % of a_true, "
+             "never-settled runs censored at the episode length (see the survival curves); P(improve) = probability "
+             "that an RL run beats the best non-RL excitation baseline on the same draw.", "",
+             "## Targets", ""] + markdown_targets(tgt) + ["", "## Tables", ""] + \
+        markdown_tables(summary, success, poi, table) + ["## Compute", ""] + markdown_compute(compute) + \
+        ["", "## Figures", ""] + [f"![{name}](results/figures/{name})" for name in made] + [""]
+    (results.parent / "RESULTS.md").write_text("\n".join(lines))
+    if readme is not None:
+        docs = ROOT / "docs" / "figures" / "benchmark"
+        docs.mkdir(parents=True, exist_ok=True)
+        for name in ("survival_paper.png", "traces_drift.png", "learning_paper.png"):
+            if (figures / name).exists():
+                shutil.copyfile(figures / name, docs / name)
+        update_readme(pathlib.Path(readme), readme_section(tgt, summary, compute))
+    return summary
+
+
+def readme_section(tgt, summary, compute):
+    lines = ["## Benchmark: can a learned excitation beat classical inputs?", "",
+             "Agents (`baselines/`): the paper's ramp and tuned sine, chirp, multilevel PRBS, Schroeder multisine and "
+             "random schedules; a CMA-ES optimal design maximizing Fisher information about a (nominal and "
+             "prior-averaged); a receding-horizon information-maximizing input; the min-max, gradient and "
+             "multiple-model estimators as agents on `Estimation-v0`; PPO and SAC (Stable-Baselines3) with frame "
+             "stacking on `Excitation-v0`. All share the same field/slew limits and the same 50 held-out draws.", "",
+             "```bash", ".venv/bin/python -m experiments.run --workers 2      # raw results -> experiments/results/raw",
+             ".venv/bin/python -m experiments.report --readme README.md  # tables, figures, summary.json, this section",
+             ".venv/bin/hyst-gym train --algo ppo --env hyst_gym/Excitation-v0 --timesteps 50000 --seed 0 --out runs/ppo0",
+             ".venv/bin/hyst-gym evaluate --agent runs/ppo0 --env hyst_gym/Excitation-v0 --episodes 50 --out runs/eval",
+             "```", "", "Results of the committed run (generated by `experiments/report.py`; full tables in "
+             "[experiments/RESULTS.md](experiments/RESULTS.md)):", ""]
+    lines += markdown_targets(tgt)
+    lines += ["", f"Compute: {compute['total_env_steps']:,} environment steps"
+              + (f", {compute['run_wall'].get('wall_s', 0) / 60:.0f} min wall" if compute["run_wall"] else "")
+              + f" on {compute['machine'].get('cpu_count', '?')} CPU cores.", ""]
+    for name, caption in (("survival_paper.png", "Settle-time survival, paper scenario"),
+                          ("traces_drift.png", "Drift scenario: inputs and estimates"),
+                          ("learning_paper.png", "Learning curves")):
+        if (ROOT / "docs" / "figures" / "benchmark" / name).exists():
+            lines.append(f"![{caption}](docs/figures/benchmark/{name})")
+    return "\n".join(lines)
+
+
+def update_readme(path: pathlib.Path, body: str, area: str = "benchmark"):
+    """Replace only the text between ``<!-- section:AREA -->`` and ``<!-- /section:AREA -->``."""
+    text = path.read_text()
+    start, end = f"<!-- section:{area} -->", f"<!-- /section:{area} -->"
+    if text.count(start) != 1 or text.count(end) != 1 or text.index(start) > text.index(end):
+        raise ValueError(f"{path}: expected exactly one {start} ... {end} pair")
+    head, rest = text.split(start)
+    _, tail = rest.split(end)
+    path.write_text(f"{head}{start}\n{body.strip()}\n{end}{tail}")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m experiments.report", description=__doc__.splitlines()[0])
+    parser.add_argument("--results", default=str(DEFAULT_RESULTS))
+    parser.add_argument("--readme", default=None, help="also update this README's benchmark section")
+    parser.add_argument("--n-boot", type=int, default=2000)
+    args = parser.parse_args(argv)
+    try:
+        write_report(args.results, args.readme, args.n_boot)
+    except (OSError, ValueError) as error:
+        parser.exit(2, f"experiments.report: error: {error}\n")
+    print(f"[report] wrote {pathlib.Path(args.results) / 'summary.json'} and RESULTS.md")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
