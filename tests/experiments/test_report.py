@@ -1,0 +1,70 @@
+"""The report script on synthetic raw results: schema, numbers traceable to the raw files."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from experiments import report
+from experiments.stats import iqm
+
+
+def _write_runs(raw, scenario, agent, runs, rng, settle_scale, episode_s=6.0):
+    folder = raw / "eval" / scenario / agent
+    folder.mkdir(parents=True)
+    expected = []
+    for run in range(runs):
+        settle = rng.exponential(settle_scale, 50)
+        settle[settle > episode_s] = np.nan  # never settled
+        rms = rng.exponential(settle_scale * 10, 50)
+        rows = [{"scenario": scenario, "agent": agent, "run": run, "env": "x", "seed": 100_000 + i, "steps": 600,
+                 "episode_time_s": episode_s, "settle_time_s": settle[i], "integrated_error": 1.0,
+                 "rms_error": rms[i], "final_error": 0.0, "pe_a_fraction": 0.5, "pe_b_fraction": 0.1}
+                for i in range(50)]
+        with (folder / f"run{run}.csv").open("w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+        expected.append((np.where(np.isnan(settle), episode_s, settle), rms))
+    return expected
+
+
+def test_report_summary_matches_raw_and_checks_targets(tmp_path):
+    rng = np.random.default_rng(0)
+    results = tmp_path / "results"
+    raw = results / "raw"
+    ramp = _write_runs(raw, "paper", "ramp", 1, rng, 4.0)
+    _write_runs(raw, "paper", "optimal_design", 1, rng, 2.0)
+    ppo = _write_runs(raw, "paper", "ppo_stack8", 5, rng, 1.0)
+    _write_runs(raw, "drift", "sine", 1, rng, 3.0, 60.0)
+    _write_runs(raw, "drift", "ppo_stack8", 5, rng, 3.0, 60.0)
+    (raw / "jobs.jsonl").write_text(json.dumps({"job": "eval/paper/ramp/run0", "kind": "eval", "env_steps": 30000,
+                                                "wall_s": 2.0}) + "\n")
+    readme = tmp_path / "README.md"
+    readme.write_text("top\n<!-- section:benchmark -->\nold\n<!-- /section:benchmark -->\nbottom\n"
+                      "<!-- section:other -->\nkeep\n<!-- /section:other -->\n")
+    report.write_report(results, readme=None, n_boot=200)
+    summary = json.loads((results / "summary.json").read_text())
+    assert set(summary) >= {"paper", "drift", "_meta"}
+    entry = summary["paper"]["ramp"]["settle_time_s"]
+    assert entry["iqm"] == pytest.approx(iqm(ramp[0][0])) and entry["n"] == 50
+    assert entry["ci95"][0] <= entry["iqm"] <= entry["ci95"][1]
+    rl = summary["paper"]["ppo"]["settle_time_s"]  # the declared main config is published as "ppo"
+    assert rl["n"] == 250 and rl["iqm"] == pytest.approx(iqm(np.array([p[0] for p in ppo])))
+    target = summary["_meta"]["targets"]["paper_settle_half_ramp"]
+    assert target["met"] == (rl["iqm"] <= 0.5 * entry["iqm"])
+    assert "drift_rms_half_best_schedule" in summary["_meta"]["targets"]
+    text = (tmp_path / "RESULTS.md").read_text()
+    assert f"{entry['iqm']:.3g}" in text
+    assert ("**met**" if target["met"] else "**NOT met**") in text
+    assert (results / "figures" / "survival_paper.png").stat().st_size > 1000
+
+    report.update_readme(readme, "new body")
+    assert readme.read_text() == ("top\n<!-- section:benchmark -->\nnew body\n<!-- /section:benchmark -->\nbottom\n"
+                                  "<!-- section:other -->\nkeep\n<!-- /section:other -->\n")
+
+
+def test_report_without_results_is_a_clear_error(tmp_path):
+    with pytest.raises(OSError, match="no evaluation results"):
+        report.write_report(tmp_path)
