@@ -39,14 +39,14 @@ def make_agent(name: str, scenario, artifacts=None):
     artifacts = pathlib.Path(artifacts) if artifacts is not None else None
     if name in SCHEDULE_AGENTS:
         params = default_schedule_params(name)
-        tuned = artifacts / "tune" / scenario.name / f"{name}.json" if artifacts else None
+        tuned = artifacts / "tune" / scenario.source / f"{name}.json" if artifacts else None
         if name != "ramp" and tuned is not None and tuned.exists():
             params = json.loads(tuned.read_text())["best"]
         return ScheduleAgent(make_schedule(name, **params), scenario.limits, scenario.episode_steps, name=name)
     if name in DESIGN_AGENTS:
         from .optimal_design import MultisineDesign
 
-        path = artifacts / "design" / scenario.name / f"{name}.json" if artifacts else None
+        path = artifacts / "design" / scenario.source / f"{name}.json" if artifacts else None
         if path is None or not path.exists():
             raise OSError(f"agent {name!r} needs its design: run the 'design' job first (missing {path})")
         data = json.loads(path.read_text())

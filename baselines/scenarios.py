@@ -48,6 +48,9 @@ class Scenario:
     prior_a : tuple
         Quantiles of the prior of a over the scenario's temperature range, A/m (used by
         the prior-averaged optimal design).
+    trained_in : str or None
+        For evaluation-only (generalization) scenarios: the scenario whose tuned
+        schedules, designs and trained policies are evaluated here.
     """
 
     name: str
@@ -58,6 +61,12 @@ class Scenario:
     theta: tuple = (6300.0, 7300.0)
     nominal_a: float = 7012.0
     prior_a: tuple = (7012.0,)
+    trained_in: str | None = None
+
+    @property
+    def source(self) -> str:
+        """Name of the scenario whose artifacts (tuning, designs, policies) are used."""
+        return self.trained_in or self.name
 
     @property
     def episode_steps(self) -> int:
@@ -70,25 +79,33 @@ class Scenario:
 def env_kwargs(scenario: Scenario, env_id: str) -> dict:
     """Keyword arguments for ``gymnasium.make(env_id, ...)`` in this scenario.
 
-    Filled in from the envs layer's configuration once it is available; see
-    :mod:`baselines.environment` for how they are used.
+    They are overrides of :class:`hyst_gym.envs.EnvConfig` fields, in plain values.
     """
     return dict(scenario.settings)
 
 
-_PAPER_LIMITS = ExcitationLimits(field_max=1.2e5, slew_max=1.0e5, dt=0.01)
-_DRIFT_LIMITS = ExcitationLimits(field_max=1.2e5, slew_max=1.0e5, dt=0.05)
+_PAPER_LIMITS = ExcitationLimits(field_max=1.0e5, slew_max=5.0e4, dt=0.01)
+_DRIFT_LIMITS = ExcitationLimits(field_max=1.0e5, slew_max=5.0e4, dt=0.05)
+_PAPER = {"temperature_mode": "fixed", "a_true": 7012.0, "initial_estimate": 6990.0, "dt": 0.01,
+          "episode_steps": 1000, "field_limit": 1.0e5, "slew_rate_limit": 5.0e4}
+_DRIFT = {"temperature_mode": "drifting", "initial_estimate": 6990.0, "dt": 0.05, "episode_steps": 1200,
+          "field_limit": 1.0e5, "slew_rate_limit": 5.0e4}
+#: a(T) over the default initial temperatures 278.15..298.15 K plus heating (EnvConfig docs).
+_DRIFT_PRIOR = tuple(float(a) for a in np.linspace(6653.0, 7250.0, 5))
 
 SCENARIOS = {
-    "paper": Scenario("paper", "Paper §4.1: first-order plant, a = 7012 fixed, thetahat(0) = 6990",
-                      {"transducer": "first_order", "temperature": "fixed", "a_true": 7012.0,
-                       "a_estimate0": 6990.0}, _PAPER_LIMITS, 6.0),
-    "drift": Scenario("drift", "Joule heating and ambient drift, 60 s episodes",
-                      {"transducer": "first_order", "temperature": "drifting"}, _DRIFT_LIMITS, 60.0,
-                      prior_a=tuple(np.linspace(6800.0, 7300.0, 5))),
-    "lumped": Scenario("lumped", "Lumped transducer (13), vector estimator (24)-(25)",
-                       {"transducer": "lumped", "temperature": "fixed", "a_true": 7012.0,
-                        "a_estimate0": 6990.0}, _PAPER_LIMITS, 6.0),
+    "paper": Scenario("paper", "Paper §4.1: first-order plant, a = 7012 fixed, thetahat(0) = 6990, 10 s",
+                      _PAPER, _PAPER_LIMITS, 10.0),
+    "drift": Scenario("drift", "Joule heating and ambient drift (5..25 C start, +-0.05 K/s), 60 s episodes",
+                      _DRIFT, _DRIFT_LIMITS, 60.0, prior_a=_DRIFT_PRIOR),
+    "lumped": Scenario("lumped", "Lumped transducer (13), vector estimator (24)-(25), a = 7012 fixed, 10 s",
+                       {**_PAPER, "transducer": "lumped"}, _PAPER_LIMITS, 10.0),
+    # generalization (evaluation only): policies trained in "drift"
+    "drift_hot": Scenario("drift_hot", "Drift, started outside the training range (27..32 C)",
+                          {**_DRIFT, "initial_temperature_range": (300.15, 305.15)}, _DRIFT_LIMITS, 60.0,
+                          prior_a=_DRIFT_PRIOR, trained_in="drift"),
+    "drift_noisy": Scenario("drift_noisy", "Drift with 10x the output noise", {**_DRIFT, "output_noise": 1e-3},
+                            _DRIFT_LIMITS, 60.0, prior_a=_DRIFT_PRIOR, trained_in="drift"),
 }
 
 __all__ = ["HELDOUT_SEEDS", "VALIDATION_SEEDS", "TUNING_SEEDS", "EXCITATION_ID", "ESTIMATION_ID", "Scenario",

@@ -53,10 +53,13 @@ PROFILES = {
              "rl_configs": ("ppo_stack8", "ppo_stack1", "sac_stack8"), "drift_rl_configs": ("ppo_stack8",)},
     "smoke": {"rl_seeds": 1, "timesteps": {"ppo": 512, "sac": 300}, "episodes": 3, "tuning_episodes": 2,
               "design_evaluations": 30, "rl_scenarios": ("paper",), "drift_timesteps": {"ppo": 512, "sac": 300},
-              "eval_every": 0, "eval_episodes": 2, "rl_configs": ("ppo_stack8",), "drift_rl_configs": ()},
+              "eval_every": 0, "eval_episodes": 2, "rl_configs": ("ppo_stack8",), "drift_rl_configs": (), "generalization": False},
 }
 
 SCENARIO_NAMES = ("paper", "drift", "lumped")
+#: Generalization (issue 5, "Experiments" 4): evaluation-only scenarios and the agents run there.
+GENERALIZATION = {"drift_hot": ("ramp", "sine", "optimal_design_prior", "greedy_info", "ppo_stack8"),
+                  "drift_noisy": ("ramp", "sine", "optimal_design_prior", "greedy_info", "ppo_stack8")}
 
 
 def declared_jobs(profile: str = "full", scenarios=SCENARIO_NAMES):
@@ -88,6 +91,16 @@ def declared_jobs(profile: str = "full", scenarios=SCENARIO_NAMES):
                                     (("timesteps", steps[algo]), ("eval_every", p["eval_every"]),
                                      ("eval_episodes", p["eval_episodes"]))))
                     evals.append(Job("eval", scenario, config, seed, (("episodes", p["episodes"]),)))
+    for scenario, agents in GENERALIZATION.items():
+        if "drift" not in scenarios or not p.get("generalization", True):
+            continue
+        for agent in agents:
+            if agent in RL_CONFIGS:
+                if agent in p["drift_rl_configs"]:
+                    evals += [Job("eval", scenario, agent, seed, (("episodes", p["episodes"]),))
+                              for seed in range(p["rl_seeds"])]
+            else:
+                evals.append(Job("eval", scenario, agent, 0, (("episodes", p["episodes"]),)))
     return [prep, evals]
 
 

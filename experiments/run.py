@@ -140,7 +140,7 @@ def _evaluate(job, raw, out):
 
     scenario = _scenario(job)
     if job.agent in RL_CONFIGS:
-        agent = PolicyAgent.load(raw / "train" / job.scenario / job.agent / f"seed{job.run}", name=job.agent)
+        agent = PolicyAgent.load(raw / "train" / scenario.source / job.agent / f"seed{job.run}", name=job.agent)
     else:
         agent = make_agent(job.agent, scenario, raw)
     env_id = ESTIMATION_ID if job.agent in ESTIMATOR_AGENTS else EXCITATION_ID
