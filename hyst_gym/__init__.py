@@ -9,4 +9,4 @@ from .physics import HysteresisParams, simulate_magnetization
 __version__ = "0.1.0"
 __all__ = ["HysteresisParams", "simulate_magnetization", "__version__"]
 
-# The envs layer adds its registration import here (hyst_gym.envs.registration).
+from .envs import registration as _registration  # noqa: E402,F401  (registers hyst_gym/...-v0)

@@ -1,0 +1,495 @@
+"""The batched simulator behind every hyst-gym environment.
+
+The physics is written once over a batch axis of ``n`` independent sub-environments:
+the single env is the batch of one, and the native vector env runs the same code (and
+the same compiled kernels) for all its sub-envs at once. One control step of length
+``dt`` (s) does, for every sub-env::
+
+    H1 = clip(command, H0 - slew*dt, H0 + slew*dt) within [-field_limit, field_limit]
+    M  : domain-wall model (6) from H0 to H1 with a = a(T0)   (physics.advance_each)
+    z  : transducer, exact first-order hold on the drive M or M**2   (physics)
+    T  : lumped thermal model, Joule heating R*mean((H/n)**2) + linear ambient drift, exact
+    y  : measured outputs = output(z) (+ velocity) + Gaussian noise
+    estimator.update(H1, y, dt) (Excitation mode) / agent's estimate (other modes)
+
+Random streams. Each sub-env owns two generators spawned (``Generator.spawn``, i.e.
+``SeedSequence`` children) from that sub-env's seeded generator: one for episode draws
+(initial temperature, ambient drift rate, PRBS bits), one for measurement noise. Noise
+is drawn per sub-env in blocks of :data:`NOISE_BLOCK` steps, so a sub-env's numbers do
+not depend on how many sub-envs run beside it. The global ``np.random`` is never used.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..estimation.bank import ModelBank
+from ..estimation.config import EstimatorConfig
+from ..estimation.config import FirstOrderPlant as EstimatorFirstOrder
+from ..estimation.config import LumpedPlant
+from ..estimation.estimators import make_estimator
+from ..physics import FEMRod, FirstOrderPlant, LumpedLinear, LumpedNonlinear, advance_each
+from .config import EnvConfig
+
+EXCITATION = "excitation"
+ESTIMATION = "estimation"
+IDENTIFICATION = "identification"
+MODES = (EXCITATION, ESTIMATION, IDENTIFICATION)
+
+#: noise samples drawn per sub-env per refill (amortizes the per-generator call cost)
+NOISE_BLOCK = 128
+#: |normalized action| may exceed 1 by this much (float32 rounding) before it is an error
+ACTION_TOLERANCE = 1e-6
+#: the symmetric-log map of the tuning error saturates at 10**TUNING_DECADES dead-zone widths
+TUNING_DECADES = 6.0
+#: observation bounds of the measured outputs, in units of their normalization scale
+OUTPUT_BOUND = 2.0
+#: observation bound of the temperature sensor, in units of TEMPERATURE_SCALE from T_ref
+TEMPERATURE_BOUND = 5.0
+TEMPERATURE_SCALE = 10.0  # K
+
+INFO_KEYS = ("a_true", "a_estimate", "estimation_error", "temperature", "field", "magnetization", "output",
+             "time", "pe_integrand", "curvature_sign", "stroke_margin", "temperature_margin", "penalty")
+
+
+def estimator_plant(config: EnvConfig):
+    """The plant model the built-in estimator (and the PE diagnostics) assume.
+
+    First-order plant: the same ``y' = -lambda*y + nu*M``. Mechanical transducers: the
+    linearized lumped model (13) -- exactly the simulated one for :class:`LumpedLinear`;
+    for the nonlinear lumped model (12) and the FEM rod, (13) linearized about the
+    default bias (a deliberate model mismatch, as on a real transducer).
+    """
+    transducer = config.transducer
+    if isinstance(transducer, FirstOrderPlant):
+        return EstimatorFirstOrder(lam=transducer.decay_rate, nu=transducer.gain)
+    if isinstance(transducer, LumpedLinear):
+        lumped = transducer
+    elif isinstance(transducer, LumpedNonlinear):
+        lumped = transducer.linearized()
+    else:
+        lumped = LumpedNonlinear.from_rod(transducer.rod).linearized()
+    return LumpedPlant.from_coefficients(khat=lumped.stiffness, chat=lumped.damping, zetahat=lumped.coupling)
+
+
+def estimator_config(config: EnvConfig) -> EstimatorConfig:
+    """The :class:`EstimatorConfig` of the built-in estimator and of the PE bank."""
+    return EstimatorConfig(theta_min=config.theta_min, theta_max=config.theta_max,
+                           initial_estimate=config.initial_estimate, grid_size=config.estimator_grid_size,
+                           eps=config.estimator_eps, gamma=config.estimator_gamma, plant=estimator_plant(config),
+                           hysteresis=config.hysteresis, max_field_step=config.max_field_step)
+
+
+def output_scales(config: EnvConfig, model) -> np.ndarray:
+    """Normalization of the measured outputs: their static value at M = Ms (and, for the
+    velocity, that displacement times the first natural angular frequency)."""
+    Ms = config.hysteresis.Ms
+    static = abs(float(model.output(model.steady_state(Ms))[0]))
+    transducer = config.transducer
+    if isinstance(transducer, FirstOrderPlant):
+        return np.array([static])
+    if isinstance(transducer, LumpedLinear):
+        omega = math.sqrt(transducer.stiffness)
+    elif isinstance(transducer, LumpedNonlinear):
+        omega = math.sqrt(transducer.stiffness / transducer.mass)
+    else:
+        omega = 2 * math.pi * float(transducer.natural_frequencies(1)[0])
+    return np.array([static, static * omega])
+
+
+def observation_names(config: EnvConfig, mode: str) -> list[str]:
+    """Names of the observation entries, in order (see the README's layout table)."""
+    names = ["displacement", "velocity"] if config.is_mechanical else ["output"]
+    names += ["field", "elapsed"]
+    if mode == EXCITATION:
+        names += ["a_estimate", "tuning_error", "curvature_sign", "minmax_gap"]
+    else:
+        names += ["previous_estimate"]
+    if config.temperature_sensor:
+        names += ["temperature"]
+    return names
+
+
+def observation_bounds(config: EnvConfig, mode: str):
+    bounds = {"displacement": (-OUTPUT_BOUND, OUTPUT_BOUND), "velocity": (-OUTPUT_BOUND, OUTPUT_BOUND),
+              "output": (-OUTPUT_BOUND, OUTPUT_BOUND), "field": (-1.0, 1.0), "elapsed": (0.0, 1.0),
+              "a_estimate": (-1.0, 1.0), "tuning_error": (-1.0, 1.0), "curvature_sign": (-1.0, 1.0),
+              "minmax_gap": (0.0, 1.0), "previous_estimate": (-1.0, 1.0),
+              "temperature": (-TEMPERATURE_BOUND, TEMPERATURE_BOUND)}
+    names = observation_names(config, mode)
+    low = np.array([bounds[n][0] for n in names], dtype=np.float32)
+    high = np.array([bounds[n][1] for n in names], dtype=np.float32)
+    return low, high
+
+
+def action_size(mode: str) -> int:
+    return 2 if mode == IDENTIFICATION else 1
+
+
+def spawn_streams(generator: np.random.Generator):
+    """(episode generator, noise generator) spawned from a sub-env's seeded generator."""
+    episode, noise = generator.spawn(2)
+    return episode, noise
+
+
+class BatchSimulator:
+    """``n`` independent transducers with drifting temperature, stepped together.
+
+    Parameters
+    ----------
+    config : EnvConfig
+    mode : str
+        ``"excitation"``, ``"estimation"`` or ``"identification"``.
+    n : int
+        Number of sub-environments.
+    truncation_steps : int, optional
+        Time limit in steps (default ``config.episode_steps``); the elapsed-time
+        observation is always relative to ``config.episode_steps``.
+    record : bool
+        Keep per-step histories (for rendering).
+    """
+
+    def __init__(self, config: EnvConfig, mode: str, n: int = 1, truncation_steps: int | None = None,
+                 record: bool = False):
+        if mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+        self.config = config
+        self.mode = mode
+        self.n = int(n)
+        self.truncation_steps = config.episode_steps if truncation_steps is None else int(truncation_steps)
+        if self.truncation_steps < 1:
+            raise ValueError(f"max_episode_steps must be >= 1, got {truncation_steps!r}")
+        n = self.n
+        self.model = config.transducer.discretize(config.dt)
+        self.scales = output_scales(config, self.model)
+        self.n_outputs = self.scales.shape[0]
+        self.obs_names = observation_names(config, mode)
+        self.obs_low, self.obs_high = observation_bounds(config, mode)
+        self.action_size = action_size(mode)
+        hyst = config.hysteresis
+        self._k = np.full(n, hyst.k)
+        self._alpha = np.full(n, hyst.alpha)
+        self._Ms = np.full(n, hyst.Ms)
+        self._c = np.full(n, hyst.c)
+        self._kind = hyst.kind
+        self.est_config = estimator_config(config)
+        if mode == EXCITATION:
+            self.estimator = make_estimator(config.estimator, self.est_config, n)
+            self.bank = self.estimator.bank
+            self._eps = self.est_config.eps
+        else:
+            self.estimator = None
+            self.bank = ModelBank(self.est_config, n)
+        plant = self.est_config.plant
+        self._pe_gain = plant.nu if isinstance(plant, EstimatorFirstOrder) else 1.0
+        thermal = config.thermal
+        self._decay = math.exp(-config.dt / thermal.time_constant)
+        self._power_per_h2 = thermal.coil_resistance / thermal.turns_per_meter ** 2
+        # state
+        self.field = np.zeros(n)
+        self.magnetization = np.zeros(n)
+        self.state = self.model.initial_state(n)
+        self._state_next = np.empty_like(self.state)
+        self.temperature = np.zeros(n)
+        self.ambient0 = np.zeros(n)
+        self.drift_rate = np.zeros(n)
+        self.steps = np.zeros(n, dtype=np.int64)
+        self.a_true = np.zeros(n)
+        self.a_estimate = np.full(n, config.initial_estimate)
+        self.measured = np.zeros((n, self.n_outputs))
+        self.measured_temperature = np.zeros(n)
+        self.prbs_bits = np.zeros((n, int(math.ceil(config.episode_duration / config.schedule_period)) + 1))
+        # random streams
+        self.episode_rngs: list = [None] * n
+        self.noise_rngs: list = [None] * n
+        self._noise_width = self.n_outputs + (1 if config.temperature_sensor else 0)
+        self._noisy = config.output_noise > 0 or (config.temperature_sensor and config.temperature_sensor_noise > 0)
+        self._noise = np.zeros((n, NOISE_BLOCK, self._noise_width))
+        self._noise_pos = np.full(n, NOISE_BLOCK, dtype=np.int64)
+        self._noise_sigma = np.concatenate([config.output_noise * self.scales,
+                                            [config.temperature_sensor_noise] if config.temperature_sensor else []])
+        self._rows = np.arange(n)
+        self.record = record
+        self.history: list[list[dict]] = [[] for _ in range(n)]
+        self.info: dict[str, np.ndarray] = {}
+
+    # ------------------------------------------------------------------ seeding and reset
+
+    def set_generator(self, row: int, generator: np.random.Generator) -> None:
+        """Give sub-env ``row`` its seeded generator (its two streams are spawned from it)."""
+        self.episode_rngs[row], self.noise_rngs[row] = spawn_streams(generator)
+        self._noise_pos[row] = NOISE_BLOCK
+
+    def reset(self, rows, options: dict | None = None) -> None:
+        """Start new episodes in sub-envs ``rows`` (array of int), drawing from their streams."""
+        config = self.config
+        rows = np.asarray(rows, dtype=np.int64)
+        options = dict(options or {})
+        unknown = set(options) - {"initial_temperature", "ambient_drift_rate", "a_true", "a_estimate"}
+        if unknown:
+            raise ValueError(f"reset: unknown option(s) {sorted(unknown)}; expected initial_temperature (K), "
+                             f"ambient_drift_rate (K/s), a_true (A/m), a_estimate (A/m)")
+        t_lo, t_hi = config.initial_temperature_range
+        d_lo, d_hi = config.ambient_drift_rate_range
+        for row in rows:
+            rng = self.episode_rngs[row]
+            if rng is None:
+                raise RuntimeError("reset: sub-env has no generator; call set_generator first")
+            draws = rng.random(2)
+            self.temperature[row] = t_lo + (t_hi - t_lo) * draws[0]
+            self.drift_rate[row] = d_lo + (d_hi - d_lo) * draws[1]
+            if config.schedule == "prbs" and self.mode == ESTIMATION:
+                self.prbs_bits[row] = np.where(rng.random(self.prbs_bits.shape[1]) < 0.5, -1.0, 1.0)
+            self._noise_pos[row] = NOISE_BLOCK  # a new episode starts a new noise block
+        if config.a_true is not None:
+            self.temperature[rows] = config.temperature_for_a(config.a_true)
+        if "a_true" in options:
+            a_true = self._option(options, "a_true", positive=True)
+            self.temperature[rows] = config.temperature_for_a(a_true)
+        if "initial_temperature" in options:
+            self.temperature[rows] = self._option(options, "initial_temperature", positive=True)
+        if "ambient_drift_rate" in options:
+            self.drift_rate[rows] = self._option(options, "ambient_drift_rate")
+        for name in ("a_true", "initial_temperature"):
+            if name in options:
+                config.hysteresis.replace(a=float(config.a_of(self.temperature[rows[0]])))  # validates
+        self.ambient0[rows] = self.temperature[rows]
+        self.a_true[rows] = config.a_of(self.temperature[rows])
+        self.field[rows] = 0.0
+        self.magnetization[rows] = 0.0
+        self.state[rows] = 0.0
+        self.steps[rows] = 0
+        a_estimate = options.get("a_estimate", config.initial_estimate)
+        self._measure(rows)
+        if self.estimator is not None:
+            measured = self.measured[rows] if config.is_mechanical else self.measured[rows, 0]
+            self.estimator.reset(a_estimate=a_estimate, field=0.0, output=measured, magnetization=0.0,
+                                 indices=rows)
+            self.a_estimate[rows] = self.estimator.a_estimate[rows]
+        else:
+            self.bank.reset(0.0, 0.0, rows)
+            self.a_estimate[rows] = self._option(options, "a_estimate") if "a_estimate" in options \
+                else config.initial_estimate
+        if self.record:
+            for row in rows:
+                self.history[row] = []
+        self._fill_info(rows, penalty=np.zeros(len(rows)), stroke=None)
+        if self.record:
+            self._record(rows)
+
+    @staticmethod
+    def _option(options, name, positive=False):
+        value = options[name]
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            raise ValueError(f"reset option {name} must be a number, got {value!r}") from None
+        if not math.isfinite(value) or (positive and value <= 0):
+            raise ValueError(f"reset option {name} must be finite{' and > 0' if positive else ''}, got {value!r}")
+        return value
+
+    # ------------------------------------------------------------------ stepping
+
+    def check_actions(self, actions) -> np.ndarray:
+        """Validate normalized actions (shape (n, action_size)); raise naming a bad value."""
+        actions = np.asarray(actions, dtype=np.float64)
+        if actions.shape != (self.n, self.action_size):
+            try:
+                actions = actions.reshape(self.n, self.action_size)
+            except ValueError:
+                raise ValueError(f"action must have shape ({self.action_size},) per sub-env, got an array of "
+                                 f"shape {np.shape(actions)}") from None
+        finite = np.isfinite(actions)
+        if not finite.all():
+            bad = actions[~finite][0]
+            raise ValueError(f"action contains {bad!r}: normalized actions must be finite numbers in [-1, 1]")
+        outside = np.abs(actions) > 1.0 + ACTION_TOLERANCE
+        if outside.any():
+            bad = actions[outside][0]
+            raise ValueError(f"action value {bad!r} is outside [-1, 1] (normalized; the field command is "
+                             f"action*field_limit, the estimate maps [-1, 1] onto Theta)")
+        return np.clip(actions, -1.0, 1.0)
+
+    def field_command(self, actions: np.ndarray) -> np.ndarray:
+        """Commanded field (A/m) before the limits, at the end of the coming step."""
+        config = self.config
+        if self.mode == ESTIMATION:
+            return self.schedule(self.steps + 1)
+        return actions[:, 0] * config.field_limit
+
+    def schedule(self, steps) -> np.ndarray:
+        """The excitation schedule of Estimation-v0 at step count ``steps`` (A/m)."""
+        config = self.config
+        t = np.asarray(steps, dtype=np.float64) * config.dt
+        h = config.field_limit
+        period = config.schedule_period
+        if config.schedule == "ramp":
+            return h * config.schedule_amplitude * np.minimum(t / period, 1.0)
+        if config.schedule == "sine":
+            return h * (config.schedule_offset + config.schedule_amplitude * np.sin(2 * np.pi * t / period))
+        if config.schedule == "chirp":
+            f0, f1 = 1.0 / period, 1.0 / config.chirp_final_period
+            phase = 2 * np.pi * (f0 * t + 0.5 * (f1 - f0) * t * t / config.episode_duration)
+            return h * (config.schedule_offset + config.schedule_amplitude * np.sin(phase))
+        index = np.minimum((t / period).astype(np.int64), self.prbs_bits.shape[1] - 1)
+        bits = self.prbs_bits[self._rows, index]
+        return h * (config.schedule_offset + config.schedule_amplitude * bits)
+
+    def step(self, actions, active=None):
+        """Advance every sub-env one control period with validated ``actions`` (n, k).
+
+        Returns ``(reward, terminated, truncated)`` arrays of shape (n,); observations
+        come from :meth:`observation`, per-step truth from :attr:`info`. ``active``
+        (bool mask, default all) marks the sub-envs whose step counts: the others are
+        stepped along with the batch but draw no noise (their streams stay as they
+        are), and the caller resets them right after.
+        """
+        config = self.config
+        dt = config.dt
+        command = self.field_command(actions)
+        field0 = self.field
+        step = config.max_field_change
+        field1 = np.clip(np.clip(command, -config.field_limit, config.field_limit), field0 - step, field0 + step)
+        magnetization0 = self.magnetization.copy()
+        advance_each(self.magnetization, field0, field1, self.a_true, self._k, self._alpha, self._Ms, self._c,
+                     self._kind, config.max_field_step)
+        self.model.advance(self.state, magnetization0, self.magnetization, out=self._state_next)
+        self.state, self._state_next = self._state_next, self.state
+        if config.temperature_mode == "drifting":
+            self._advance_temperature(field0, field1)
+        self.field = field1
+        self.steps += 1
+        self.a_true = config.a_of(self.temperature)
+        self._measure(self._rows if active is None else np.flatnonzero(active))
+        if self.estimator is not None:
+            measured = self.measured if config.is_mechanical else self.measured[:, 0]
+            self.a_estimate[:] = self.estimator.update(field1, measured, dt)
+        else:
+            self.bank.advance(field1)
+            estimate_column = 0 if self.mode == ESTIMATION else 1
+            self.a_estimate[:] = config.theta_min + 0.5 * (actions[:, estimate_column] + 1.0) * config.theta_width
+        stroke = np.abs(self.model.output(self.state))
+        error = np.abs(self.a_estimate - self.a_true) / config.theta_width
+        penalty = np.zeros(self.n)
+        terminated = self.temperature > config.temperature_limit
+        band = config.temperature_penalty_band
+        penalty += np.maximum(0.0, (self.temperature - (config.temperature_limit - band)) / band) ** 2
+        if config.stroke_limit is not None:
+            terminated |= stroke > config.stroke_limit
+            band = config.stroke_penalty_band
+            penalty += np.maximum(0.0, (stroke / config.stroke_limit - (1.0 - band)) / band) ** 2
+        penalty *= config.penalty_weight
+        reward = -error - penalty
+        # Ending an episode early must never pay: a violation costs the worst
+        # estimation reward (-1 per step) for every step left to the time limit.
+        remaining = np.maximum(self.truncation_steps - self.steps, 0)
+        reward = np.where(terminated, reward - remaining, reward)
+        truncated = self.steps >= self.truncation_steps
+        self._fill_info(self._rows, penalty, stroke)
+        if self.record:
+            self._record(self._rows)
+        return reward, terminated, truncated
+
+    def _advance_temperature(self, field0, field1):
+        """Exact update of ``C*T' = P - (T - T_amb(t))/R_th`` with P held at its step
+        mean and ``T_amb(t) = T_amb0 + drift*t`` (see physics.advance_temperature)."""
+        thermal = self.config.thermal
+        tau = thermal.time_constant
+        power = self._power_per_h2 * (field0 * field0 + field0 * field1 + field1 * field1) / 3.0
+        time0 = self.steps * self.config.dt
+        ambient0 = self.ambient0 + self.drift_rate * time0
+        ambient1 = ambient0 + self.drift_rate * self.config.dt
+        offset = thermal.thermal_resistance * power - self.drift_rate * tau
+        self.temperature = (ambient1 + offset) + (self.temperature - (ambient0 + offset)) * self._decay
+
+    def _measure(self, rows):
+        """Noisy measured outputs (and temperature) of ``rows`` at the current state."""
+        outputs = self.model.output(self.state[rows])
+        if self.config.is_mechanical:
+            self.measured[rows, 0] = outputs
+            self.measured[rows, 1] = self.model.velocity(self.state[rows])
+        else:
+            self.measured[rows, 0] = outputs
+        self.measured_temperature[rows] = self.temperature[rows]
+        if not self._noisy:
+            return
+        empty = rows[self._noise_pos[rows] >= NOISE_BLOCK]
+        for row in empty:
+            self._noise[row] = self.noise_rngs[row].standard_normal((NOISE_BLOCK, self._noise_width))
+            self._noise_pos[row] = 0
+        noise = self._noise[rows, self._noise_pos[rows]] * self._noise_sigma
+        self._noise_pos[rows] += 1
+        self.measured[rows] += noise[:, :self.n_outputs]
+        if self.config.temperature_sensor:
+            self.measured_temperature[rows] += noise[:, self.n_outputs]
+
+    # ------------------------------------------------------------------ observations and info
+
+    def observation(self) -> np.ndarray:
+        """Normalized observations of all sub-envs, float32 of shape (n, obs_size)."""
+        config = self.config
+        columns = [self.measured[:, i] / self.scales[i] for i in range(self.n_outputs)]
+        columns.append(self.field / config.field_limit)
+        columns.append(self.steps / config.episode_steps)
+        columns.append(2.0 * (self.a_estimate - config.theta_min) / config.theta_width - 1.0)
+        if self.estimator is not None:
+            tuning = self.estimator.tuning_error
+            columns.append(np.sign(tuning) * np.log10(1.0 + np.abs(tuning) / self._eps) / TUNING_DECADES)
+            columns.append(self.estimator.curvature_sign)
+            columns.append(np.log1p(self.estimator.minmax_gap) / math.log1p(2.0 * config.hysteresis.Ms))
+        if config.temperature_sensor:
+            columns.append((self.measured_temperature - config.thermal.reference_temperature) / TEMPERATURE_SCALE)
+        obs = np.stack(columns, axis=1)
+        np.clip(obs, self.obs_low, self.obs_high, out=obs)
+        return obs.astype(np.float32)
+
+    def _fill_info(self, rows, penalty, stroke):
+        config = self.config
+        theta = np.clip(self.a_true, config.theta_min, config.theta_max)
+        if self.estimator is not None:
+            integrand = self.estimator.pe_integrand(theta)
+            curvature = self.estimator.curvature_sign
+        else:
+            value_hat, _, curvature_hat = self.bank.evaluate(self.a_estimate)
+            value_true, _, _ = self.bank.evaluate(theta)
+            curvature = np.where(curvature_hat >= 0.0, 1.0, -1.0)
+            integrand = curvature * self._pe_gain * (value_hat - value_true)
+        if stroke is None:
+            stroke = np.abs(self.model.output(self.state))
+        stroke_margin = (1.0 - stroke / config.stroke_limit) if config.stroke_limit is not None \
+            else np.full(self.n, np.inf)
+        values = {
+            "a_true": self.a_true, "a_estimate": self.a_estimate,
+            "estimation_error": np.abs(self.a_estimate - self.a_true) / config.theta_width,
+            "temperature": self.temperature, "field": self.field, "magnetization": self.magnetization,
+            "output": self.model.output(self.state), "time": self.steps * config.dt,
+            "pe_integrand": integrand, "curvature_sign": curvature, "stroke_margin": stroke_margin,
+            "temperature_margin": config.temperature_limit - self.temperature,
+        }
+        if len(rows) == self.n:
+            self.info = {key: np.array(value, dtype=np.float64) for key, value in values.items()}
+            self.info["penalty"] = np.asarray(penalty, dtype=np.float64).copy()
+        else:
+            for key, value in values.items():
+                self.info.setdefault(key, np.zeros(self.n))[rows] = np.asarray(value)[rows]
+            self.info.setdefault("penalty", np.zeros(self.n))[rows] = penalty
+
+    def info_of(self, row: int) -> dict:
+        """The info dict of one sub-env, with Python floats."""
+        return {key: float(self.info[key][row]) for key in INFO_KEYS}
+
+    def _record(self, rows):
+        for row in rows:
+            self.history[row].append({"time": float(self.steps[row] * self.config.dt),
+                                      "field": float(self.field[row]),
+                                      "magnetization": float(self.magnetization[row]),
+                                      "output": float(self.model.output(self.state[row:row + 1])[0]),
+                                      "a_true": float(self.a_true[row]),
+                                      "a_estimate": float(self.a_estimate[row]),
+                                      "temperature": float(self.temperature[row])})
+
+
+__all__ = ["BatchSimulator", "EXCITATION", "ESTIMATION", "IDENTIFICATION", "INFO_KEYS", "MODES",
+           "NOISE_BLOCK", "estimator_config", "estimator_plant", "observation_names", "output_scales"]

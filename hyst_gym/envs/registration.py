@@ -1,0 +1,35 @@
+"""Registration of the hyst-gym ids with Gymnasium, at ``import hyst_gym``.
+
+Gymnasium 1.x has no entry-point plugins, so ``hyst_gym/__init__.py`` imports this
+module; ``gymnasium.make("hyst_gym:hyst_gym/Excitation-v0")`` imports ``hyst_gym`` and
+so registers the ids from any project.
+"""
+
+from __future__ import annotations
+
+import gymnasium
+
+from .config import EnvConfig
+
+#: id -> (single env class, vector env class), "module:Class" strings (lazy import)
+ENV_IDS = {
+    "hyst_gym/Excitation-v0": ("hyst_gym.envs.single:ExcitationEnv", "hyst_gym.envs.vector:ExcitationVectorEnv"),
+    "hyst_gym/Estimation-v0": ("hyst_gym.envs.single:EstimationEnv", "hyst_gym.envs.vector:EstimationVectorEnv"),
+    "hyst_gym/Identification-v0": ("hyst_gym.envs.single:IdentificationEnv",
+                                   "hyst_gym.envs.vector:IdentificationVectorEnv"),
+}
+
+
+def register_envs() -> None:
+    """Register the three ids (idempotent)."""
+    steps = EnvConfig.__dataclass_fields__["episode_steps"].default
+    for env_id, (entry_point, vector_entry_point) in ENV_IDS.items():
+        if env_id in gymnasium.registry:
+            continue
+        gymnasium.register(id=env_id, entry_point=entry_point, vector_entry_point=vector_entry_point,
+                           max_episode_steps=steps)
+
+
+register_envs()
+
+__all__ = ["ENV_IDS", "register_envs"]

@@ -1,0 +1,128 @@
+"""The three single environments: the batch-of-one view of :class:`~.core.BatchSimulator`.
+
+* :class:`ExcitationEnv` (``hyst_gym/Excitation-v0``): action = normalized field command;
+  a built-in estimator estimates ``a``.
+* :class:`EstimationEnv` (``hyst_gym/Estimation-v0``): the field follows a schedule;
+  action = the agent's estimate of ``a`` normalized to Theta.
+* :class:`IdentificationEnv` (``hyst_gym/Identification-v0``): action = (field command,
+  estimate).
+
+Constructor: ``Env(config=None, render_mode=None, **overrides)``; ``overrides`` are
+:class:`~.config.EnvConfig` field names, so ``gymnasium.make(id, dt=0.005)`` works.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from .config import EnvConfig, make_config
+from .core import ESTIMATION, EXCITATION, IDENTIFICATION, BatchSimulator
+
+RENDER_MODES = ("rgb_array", "human")
+
+
+class HystEnv(gym.Env):
+    """A Terfenol-D transducer with drifting temperature (base of the three modes).
+
+    Parameters
+    ----------
+    config : EnvConfig, optional
+        The system (default :class:`EnvConfig`).
+    render_mode : {None, "rgb_array", "human"}
+    **overrides
+        Fields of :class:`EnvConfig` to change.
+
+    Reset options: ``initial_temperature`` (K), ``ambient_drift_rate`` (K/s), ``a_true``
+    (A/m, sets the initial temperature), ``a_estimate`` (A/m, thetahat(0)).
+    """
+
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 30}
+    mode = EXCITATION
+
+    def __init__(self, config: EnvConfig | None = None, render_mode: str | None = None, **overrides):
+        self.config = make_config(config, **overrides)
+        if render_mode is not None and render_mode not in RENDER_MODES:
+            raise ValueError(f"render_mode must be one of {RENDER_MODES} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.sim = BatchSimulator(self.config, self.mode, 1, record=render_mode is not None)
+        self.observation_space = spaces.Box(self.sim.obs_low, self.sim.obs_high, dtype=np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (self.sim.action_size,), dtype=np.float32)
+        self._figure = None
+
+    @property
+    def observation_names(self) -> list[str]:
+        """Names of the observation entries, in order."""
+        return list(self.sim.obs_names)
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        if seed is not None or self.sim.episode_rngs[0] is None:
+            self.sim.set_generator(0, self.np_random)
+        self.sim.reset(np.zeros(1, dtype=np.int64), options)
+        if self.render_mode == "human":
+            self.render()
+        return self.sim.observation()[0], self.sim.info_of(0)
+
+    def step(self, action):
+        actions = self.sim.check_actions(np.asarray(action, dtype=np.float64).reshape(1, -1)
+                                         if np.size(action) == self.sim.action_size else action)
+        reward, terminated, truncated = self.sim.step(actions)
+        if self.render_mode == "human":
+            self.render()
+        return (self.sim.observation()[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]),
+                self.sim.info_of(0))
+
+    def render(self):
+        """``"rgb_array"``: an (H, W, 3) uint8 frame; ``"human"``: draws it in a window."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called with render_mode=None; pass render_mode='rgb_array' or 'human'")
+            return None
+        from .rendering import draw_figure, figure_to_array, show_human
+        if self.render_mode == "rgb_array":
+            return figure_to_array(draw_figure(self.sim.history[0], self.config, title=type(self).__name__))
+        self._figure = show_human(self._figure, self.sim.history[0], self.config, title=type(self).__name__)
+        return None
+
+    def episode_history(self) -> list[dict]:
+        """Per-step records of the current episode (needs a render_mode or ``record=True``)."""
+        return list(self.sim.history[0])
+
+    def close(self):
+        if self._figure is not None:
+            from .rendering import close_figure
+            close_figure(self._figure)
+            self._figure = None
+
+
+class ExcitationEnv(HystEnv):
+    """``hyst_gym/Excitation-v0``: design the field; a built-in estimator estimates ``a``.
+
+    Action (1,): field command / field_limit in [-1, 1]; the applied field moves towards
+    it by at most ``slew_rate_limit*dt``. Reward: ``-|a_estimate - a_true|/width(Theta)``
+    minus constraint penalties.
+    """
+
+    mode = EXCITATION
+
+
+class EstimationEnv(HystEnv):
+    """``hyst_gym/Estimation-v0``: the field follows ``config.schedule``; the agent estimates.
+
+    Action (1,): estimate of ``a`` normalized to Theta: ``a = theta_min + (action+1)/2*width``.
+    """
+
+    mode = ESTIMATION
+
+
+class IdentificationEnv(HystEnv):
+    """``hyst_gym/Identification-v0``: the agent designs the field and estimates ``a``.
+
+    Action (2,): (field command / field_limit, estimate normalized to Theta).
+    """
+
+    mode = IDENTIFICATION
+
+
+__all__ = ["EstimationEnv", "ExcitationEnv", "HystEnv", "IdentificationEnv", "RENDER_MODES"]
