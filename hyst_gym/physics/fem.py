@@ -135,8 +135,9 @@ class FEMRod(_Transducer):
             drive, gain = QUADRATIC_DRIVE, zeta
         else:
             drive, gain = LINEAR_DRIVE, 2.0 * zeta * self.bias_magnetization
+        static = np.r_[np.linalg.solve(self.stiffness_matrix(), self.forcing_vector()), np.zeros(n)]
         return DiscreteTransducer(dt, phi, g0, g1, drive, float(gain), n - 1, 2 * n - 1,
-                                  name=f"FEMRod(N={n})")
+                                  name=f"FEMRod(N={n})", static_response=static)
 
     def replace(self, **changes) -> "FEMRod":
         return dataclasses.replace(self, **changes)

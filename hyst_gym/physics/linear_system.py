@@ -106,6 +106,8 @@ class DiscreteTransducer:
         Index of the tip velocity (m/s), if the model has one.
     output_offset : float
         Added to the output; 0 unless documented by the model that made it.
+    static_response : ndarray
+        Rest state per unit drive ``u`` (``-A^-1 b``).
     """
 
     dt: float
@@ -118,9 +120,16 @@ class DiscreteTransducer:
     velocity_index: int | None = None
     output_offset: float = 0.0
     name: str = "transducer"
+    static_response: np.ndarray | None = None
 
     def __post_init__(self):
-        for attr in ("phi", "gamma0", "gamma1"):
+        if self.static_response is None:
+            # equilibrium per unit drive from the discrete map; models that know their
+            # continuous A, b pass -A^-1 b instead (better conditioned for stiff rods)
+            static = np.linalg.solve(np.eye(np.shape(self.phi)[0]) - np.asarray(self.phi),
+                                     np.asarray(self.gamma0) + np.asarray(self.gamma1))
+            object.__setattr__(self, "static_response", static)
+        for attr in ("phi", "gamma0", "gamma1", "static_response"):
             arr = np.array(getattr(self, attr), dtype=np.float64)
             arr.setflags(write=False)
             object.__setattr__(self, attr, arr)
@@ -148,12 +157,11 @@ class DiscreteTransducer:
     def steady_state(self, magnetization) -> np.ndarray:
         """The equilibrium under a constant magnetization (A/m), one row per value.
 
-        Solves ``(I - phi) z = (gamma0 + gamma1) u``; useful to start at a bias.
+        ``z = static_response * u``: the rest state of ``z' = A z + b u`` (velocities 0);
+        useful to start at a bias.
         """
         u = np.atleast_1d(self.drive_of(magnetization)).ravel()
-        lhs = np.eye(self.state_size) - self.phi
-        rhs = np.outer(self.gamma0 + self.gamma1, u)
-        return np.linalg.solve(lhs, rhs).T.copy()
+        return np.outer(u, self.static_response)
 
     def advance(self, state, magnetization_start, magnetization_end, out=None) -> np.ndarray:
         """State after one control period.

@@ -202,7 +202,7 @@ class FirstOrderPlant(_Transducer):
         dt = check_dt("FirstOrderPlant.discretize", dt)
         phi, g0, g1 = first_order_hold(np.array([[-self.decay_rate]]), np.array([1.0]), dt)
         return DiscreteTransducer(dt, phi, g0, g1, LINEAR_DRIVE, float(self.gain), 0, None,
-                                  name="FirstOrderPlant")
+                                  name="FirstOrderPlant", static_response=np.array([1.0 / self.decay_rate]))
 
 
 @dataclass(frozen=True)
@@ -261,7 +261,7 @@ class LumpedLinear(_Transducer):
         A, b = self.state_matrices()
         phi, g0, g1 = first_order_hold(A, b, dt, scale=np.array([1.0, math.sqrt(self.stiffness)]))
         return DiscreteTransducer(dt, phi, g0, g1, LINEAR_DRIVE, float(self.coupling), 0, 1,
-                                  name="LumpedLinear")
+                                  name="LumpedLinear", static_response=np.array([1.0 / self.stiffness, 0.0]))
 
 
 @dataclass(frozen=True)
@@ -316,7 +316,7 @@ class LumpedNonlinear(_Transducer):
         A, b = self.state_matrices()
         phi, g0, g1 = first_order_hold(A, b, dt, scale=np.array([1.0, math.sqrt(self.stiffness / self.mass)]))
         return DiscreteTransducer(dt, phi, g0, g1, QUADRATIC_DRIVE, float(self.force_coefficient), 0, 1,
-                                  name="LumpedNonlinear")
+                                  name="LumpedNonlinear", static_response=np.array([1.0 / self.stiffness, 0.0]))
 
 
 __all__ = [
