@@ -173,7 +173,7 @@ class EnvConfig:
     estimator_grid_size: int = 32
     estimator_eps: float | None = None
     estimator_gamma: float | None = None
-    max_field_step: float = 100.0
+    max_field_step: float = 250.0
     output_noise: float = 1.0e-4
     stroke_limit: float | None = None
     temperature_limit: float = 333.15

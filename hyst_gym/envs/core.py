@@ -30,8 +30,9 @@ from ..estimation.config import EstimatorConfig
 from ..estimation.config import FirstOrderPlant as EstimatorFirstOrder
 from ..estimation.config import LumpedPlant
 from ..estimation.estimators import make_estimator
-from ..physics import FEMRod, FirstOrderPlant, LumpedLinear, LumpedNonlinear, advance_each
+from ..physics import FirstOrderPlant, LumpedLinear, LumpedNonlinear
 from .config import EnvConfig
+from .kernels import fill_info, fill_observation, plant_step, score_step
 
 EXCITATION = "excitation"
 ESTIMATION = "estimation"
@@ -211,9 +212,31 @@ class BatchSimulator:
         self._noise_sigma = np.concatenate([config.output_noise * self.scales,
                                             [config.temperature_sensor_noise] if config.temperature_sensor else []])
         self._rows = np.arange(n)
+        self._all_active = np.ones(n, dtype=bool)
+        self._magnetization_prev = np.zeros(n)
+        transducer = self.model
+        self._plant_args = (self._k, self._alpha, self._Ms, self._c, self._kind, config.max_field_step,
+                            config.field_limit, config.max_field_change, transducer.phi, transducer.gamma0,
+                            transducer.gamma1, transducer.drive == "quadratic", transducer.drive_gain,
+                            transducer.output_index,
+                            -1 if transducer.velocity_index is None or not config.is_mechanical
+                            else transducer.velocity_index,
+                            config.temperature_mode == "drifting", config.dt, self._decay, self._power_per_h2,
+                            thermal.thermal_resistance, thermal.time_constant, thermal.a_reference,
+                            thermal.reference_temperature)
+        self._score_args = (config.theta_width, config.temperature_limit, config.temperature_penalty_band,
+                            -1.0 if config.stroke_limit is None else config.stroke_limit,
+                            config.stroke_penalty_band, config.penalty_weight)
+        self._out = {"reward": np.zeros(n), "terminated": np.zeros(n, dtype=bool),
+                     "truncated": np.zeros(n, dtype=bool), "error": np.zeros(n), "penalty": np.zeros(n),
+                     "stroke": np.zeros(n)}
+        self._obs = np.zeros((n, len(self.obs_names)), dtype=np.float32)
+        self._pe = (np.zeros(n), np.zeros(n), np.zeros(n))
+        self._gap_norm = math.log1p(2.0 * config.hysteresis.Ms)
         self.record = record
         self.history: list[list[dict]] = [[] for _ in range(n)]
-        self.info: dict[str, np.ndarray] = {}
+        self.info_array = np.zeros((len(INFO_KEYS), n))
+        self._theta = np.zeros(n)
 
     # ------------------------------------------------------------------ seeding and reset
 
@@ -275,7 +298,8 @@ class BatchSimulator:
         if self.record:
             for row in rows:
                 self.history[row] = []
-        self._fill_info(rows, penalty=np.zeros(len(rows)), stroke=None)
+        self._out["penalty"][rows] = 0.0
+        self._fill_info(rows, self._out["penalty"])
         if self.record:
             self._record(rows)
 
@@ -347,62 +371,35 @@ class BatchSimulator:
         are), and the caller resets them right after.
         """
         config = self.config
-        dt = config.dt
+        if active is None:
+            active = self._all_active
+        if self._noisy and self._noise_pos.max() >= NOISE_BLOCK:
+            self._refill_noise(np.flatnonzero((self._noise_pos >= NOISE_BLOCK) & active))
         command = self.field_command(actions)
-        field0 = self.field
-        step = config.max_field_change
-        field1 = np.clip(np.clip(command, -config.field_limit, config.field_limit), field0 - step, field0 + step)
-        magnetization0 = self.magnetization.copy()
-        advance_each(self.magnetization, field0, field1, self.a_true, self._k, self._alpha, self._Ms, self._c,
-                     self._kind, config.max_field_step)
-        self.model.advance(self.state, magnetization0, self.magnetization, out=self._state_next)
-        self.state, self._state_next = self._state_next, self.state
-        if config.temperature_mode == "drifting":
-            self._advance_temperature(field0, field1)
-        self.field = field1
-        self.steps += 1
-        self.a_true = config.a_of(self.temperature)
-        self._measure(self._rows if active is None else np.flatnonzero(active))
+        plant_step(command, active, self.field, self.magnetization, self._magnetization_prev, self.state,
+                   self._state_next, self.temperature, self.ambient0, self.drift_rate, self.steps, self.a_true,
+                   self.measured, self.measured_temperature, self._noise, self._noise_pos, self._noise_sigma,
+                   self._noisy, config.temperature_sensor, *self._plant_args)
         if self.estimator is not None:
             measured = self.measured if config.is_mechanical else self.measured[:, 0]
-            self.a_estimate[:] = self.estimator.update(field1, measured, dt)
+            self.a_estimate[:] = self.estimator.update(self.field, measured, config.dt)
         else:
-            self.bank.advance(field1)
+            self.bank.advance(self.field)
             estimate_column = 0 if self.mode == ESTIMATION else 1
             self.a_estimate[:] = config.theta_min + 0.5 * (actions[:, estimate_column] + 1.0) * config.theta_width
-        stroke = np.abs(self.model.output(self.state))
-        error = np.abs(self.a_estimate - self.a_true) / config.theta_width
-        penalty = np.zeros(self.n)
-        terminated = self.temperature > config.temperature_limit
-        band = config.temperature_penalty_band
-        penalty += np.maximum(0.0, (self.temperature - (config.temperature_limit - band)) / band) ** 2
-        if config.stroke_limit is not None:
-            terminated |= stroke > config.stroke_limit
-            band = config.stroke_penalty_band
-            penalty += np.maximum(0.0, (stroke / config.stroke_limit - (1.0 - band)) / band) ** 2
-        penalty *= config.penalty_weight
-        reward = -error - penalty
-        # Ending an episode early must never pay: a violation costs the worst
-        # estimation reward (-1 per step) for every step left to the time limit.
-        remaining = np.maximum(self.truncation_steps - self.steps, 0)
-        reward = np.where(terminated, reward - remaining, reward)
-        truncated = self.steps >= self.truncation_steps
-        self._fill_info(self._rows, penalty, stroke)
+        out = self._out
+        score_step(self.a_estimate, self.a_true, self.temperature, self.state, self.model.output_index, self.steps,
+                   self.truncation_steps, *self._score_args, out["reward"], out["terminated"], out["truncated"],
+                   out["error"], out["penalty"], out["stroke"])
+        self._fill_info(None, out["penalty"])
         if self.record:
             self._record(self._rows)
-        return reward, terminated, truncated
+        return out["reward"].copy(), out["terminated"].copy(), out["truncated"].copy()
 
-    def _advance_temperature(self, field0, field1):
-        """Exact update of ``C*T' = P - (T - T_amb(t))/R_th`` with P held at its step
-        mean and ``T_amb(t) = T_amb0 + drift*t`` (see physics.advance_temperature)."""
-        thermal = self.config.thermal
-        tau = thermal.time_constant
-        power = self._power_per_h2 * (field0 * field0 + field0 * field1 + field1 * field1) / 3.0
-        time0 = self.steps * self.config.dt
-        ambient0 = self.ambient0 + self.drift_rate * time0
-        ambient1 = ambient0 + self.drift_rate * self.config.dt
-        offset = thermal.thermal_resistance * power - self.drift_rate * tau
-        self.temperature = (ambient1 + offset) + (self.temperature - (ambient0 + offset)) * self._decay
+    def _refill_noise(self, rows):
+        for row in rows:
+            self._noise[row] = self.noise_rngs[row].standard_normal((NOISE_BLOCK, self._noise_width))
+            self._noise_pos[row] = 0
 
     def _measure(self, rows):
         """Noisy measured outputs (and temperature) of ``rows`` at the current state."""
@@ -428,57 +425,49 @@ class BatchSimulator:
     # ------------------------------------------------------------------ observations and info
 
     def observation(self) -> np.ndarray:
-        """Normalized observations of all sub-envs, float32 of shape (n, obs_size)."""
+        """Normalized observations of all sub-envs, float32 of shape (n, obs_size) (a new array)."""
         config = self.config
-        columns = [self.measured[:, i] / self.scales[i] for i in range(self.n_outputs)]
-        columns.append(self.field / config.field_limit)
-        columns.append(self.steps / config.episode_steps)
-        columns.append(2.0 * (self.a_estimate - config.theta_min) / config.theta_width - 1.0)
-        if self.estimator is not None:
-            tuning = self.estimator.tuning_error
-            columns.append(np.sign(tuning) * np.log10(1.0 + np.abs(tuning) / self._eps) / TUNING_DECADES)
-            columns.append(self.estimator.curvature_sign)
-            columns.append(np.log1p(self.estimator.minmax_gap) / math.log1p(2.0 * config.hysteresis.Ms))
-        if config.temperature_sensor:
-            columns.append((self.measured_temperature - config.thermal.reference_temperature) / TEMPERATURE_SCALE)
-        obs = np.stack(columns, axis=1)
-        np.clip(obs, self.obs_low, self.obs_high, out=obs)
-        return obs.astype(np.float32)
+        estimator = self.estimator
+        if estimator is not None:
+            tuning, curvature, gap = estimator.tuning_error, estimator.curvature_sign, estimator.minmax_gap
+        else:
+            tuning = curvature = gap = self.a_estimate
+        fill_observation(self._obs, self.measured, self.scales, self.field, config.field_limit, self.steps,
+                         config.episode_steps, self.a_estimate, config.theta_min, config.theta_width,
+                         tuning, self._eps if estimator is not None else 1.0, curvature, gap, self._gap_norm,
+                         TUNING_DECADES, estimator is not None, self.measured_temperature,
+                         config.thermal.reference_temperature, TEMPERATURE_SCALE, config.temperature_sensor,
+                         self.obs_low, self.obs_high)
+        return self._obs.copy()
 
-    def _fill_info(self, rows, penalty, stroke):
+    def _fill_info(self, rows, penalty):
+        """Per-step truth of ``rows`` (all if None) into :attr:`info_array`; ``penalty`` is (n,)."""
         config = self.config
-        theta = np.clip(self.a_true, config.theta_min, config.theta_max)
+        rows = self._rows if rows is None else rows
+        np.clip(self.a_true, config.theta_min, config.theta_max, out=self._theta)
+        value, slope, second = self._pe
         if self.estimator is not None:
-            integrand = self.estimator.pe_integrand(theta)
             curvature = self.estimator.curvature_sign
+            value_hat = self.estimator.model_output
         else:
-            value_hat, _, curvature_hat = self.bank.evaluate(self.a_estimate)
-            value_true, _, _ = self.bank.evaluate(theta)
-            curvature = np.where(curvature_hat >= 0.0, 1.0, -1.0)
-            integrand = curvature * self._pe_gain * (value_hat - value_true)
-        if stroke is None:
-            stroke = np.abs(self.model.output(self.state))
-        stroke_margin = (1.0 - stroke / config.stroke_limit) if config.stroke_limit is not None \
-            else np.full(self.n, np.inf)
-        values = {
-            "a_true": self.a_true, "a_estimate": self.a_estimate,
-            "estimation_error": np.abs(self.a_estimate - self.a_true) / config.theta_width,
-            "temperature": self.temperature, "field": self.field, "magnetization": self.magnetization,
-            "output": self.model.output(self.state), "time": self.steps * config.dt,
-            "pe_integrand": integrand, "curvature_sign": curvature, "stroke_margin": stroke_margin,
-            "temperature_margin": config.temperature_limit - self.temperature,
-        }
-        if len(rows) == self.n:
-            self.info = {key: np.array(value, dtype=np.float64) for key, value in values.items()}
-            self.info["penalty"] = np.asarray(penalty, dtype=np.float64).copy()
-        else:
-            for key, value in values.items():
-                self.info.setdefault(key, np.zeros(self.n))[rows] = np.asarray(value)[rows]
-            self.info.setdefault("penalty", np.zeros(self.n))[rows] = penalty
+            self.bank.evaluate(self.a_estimate, value, slope, second)
+            curvature = second.copy()
+            value_hat = value.copy()
+        self.bank.evaluate(self._theta, value, slope, second)
+        fill_info(self.info_array, rows, self.a_true, self.a_estimate, self.temperature, self.field,
+                  self.magnetization, self.state, self.model.output_index, self.model.output_offset, self.steps,
+                  config.dt, value_hat, value, curvature, self._pe_gain,
+                  -1.0 if config.stroke_limit is None else config.stroke_limit, config.temperature_limit,
+                  penalty, config.theta_width)
+
+    @property
+    def info(self) -> dict:
+        """Per-step truth of all sub-envs: key -> (n,) array view (copy before keeping)."""
+        return dict(zip(INFO_KEYS, self.info_array))
 
     def info_of(self, row: int) -> dict:
         """The info dict of one sub-env, with Python floats."""
-        return {key: float(self.info[key][row]) for key in INFO_KEYS}
+        return dict(zip(INFO_KEYS, self.info_array[:, row].tolist()))
 
     def _record(self, rows):
         for row in rows:

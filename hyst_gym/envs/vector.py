@@ -121,8 +121,10 @@ class HystVectorEnv(VectorEnv):
             final_obs = np.full(self.num_envs, None, dtype=object)
             for row in rows:
                 final_obs[row] = observations[row].copy()
-            final_info = {key: value.copy() for key, value in infos.items()}
+            # as SyncVectorEnv: entries of sub-envs that did not finish are 0 / masked out
+            final_info = {}
             for key in INFO_KEYS:
+                final_info[key] = np.where(done, infos[key], 0.0)
                 final_info["_" + key] = done.copy()
             self.sim.reset(rows)
             observations = self.sim.observation()
@@ -134,9 +136,10 @@ class HystVectorEnv(VectorEnv):
         return observations, rewards, terminations, truncations, infos
 
     def _infos(self) -> dict:
+        values = self.sim.info_array.copy()
         infos = {}
-        for key in INFO_KEYS:
-            infos[key] = self.sim.info[key].copy()
+        for key, row in zip(INFO_KEYS, values):
+            infos[key] = row
             infos["_" + key] = np.ones(self.num_envs, dtype=bool)
         return infos
 
