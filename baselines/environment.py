@@ -17,8 +17,8 @@ INFO_KEYS = {
     "field": ("field", "applied_field"),
     "a_estimate": ("a_estimate",),
     "a_true": ("a_true",),
-    "pe_a": ("pe_condition_a", "pe_a"),
-    "pe_b": ("pe_condition_b", "pe_b"),
+    "pe_integrand": ("pe_integrand",),
+    "curvature_sign": ("curvature_sign",),
 }
 
 
@@ -30,26 +30,30 @@ class EpisodeSpec:
     env_kwargs: dict = field(default_factory=dict)
     dt: float = 0.01
 
+    @property
+    def max_episode_steps(self):
+        return self.env_kwargs.get("episode_steps")
+
     def make(self, **overrides):
         import gymnasium
 
-        import hyst_gym  # noqa: F401  (registers the environments)
+        _register()
+        return gymnasium.make(self.env_id, max_episode_steps=self.max_episode_steps,
+                              **{**self.env_kwargs, **overrides})
 
-        return gymnasium.make(self.env_id, **{**self.env_kwargs, **overrides})
+
+def _register():
+    import hyst_gym  # noqa: F401  (registers the environments)
+    import hyst_gym.envs.registration  # noqa: F401
 
 
 def make_vector_env(spec: EpisodeSpec, n: int):
     """The native vector env for ``spec`` (falls back to Gymnasium's ``SyncVectorEnv``)."""
     import gymnasium
 
-    import hyst_gym  # noqa: F401
-
-    try:
-        return gymnasium.make_vec(spec.env_id, num_envs=int(n), vectorization_mode="vector_entry_point",
-                                  **spec.env_kwargs)
-    except (gymnasium.error.Error, ValueError, TypeError, AttributeError):
-        return gymnasium.make_vec(spec.env_id, num_envs=int(n), vectorization_mode="sync",
-                                  vector_kwargs={}, **spec.env_kwargs)
+    _register()
+    return gymnasium.make_vec(spec.env_id, num_envs=int(n), vectorization_mode="vector_entry_point",
+                              max_episode_steps=spec.max_episode_steps, **spec.env_kwargs)
 
 
 def reset_vector_env(env, seeds):
@@ -83,7 +87,8 @@ def make_sb3_vec_env(spec: EpisodeSpec, n_envs: int, seed: int, n_stack: int = 1
     except ImportError:
         adapter = None
     if adapter is not None:
-        venv = adapter(spec.env_id, n_envs=n_envs, seed=seed, **spec.env_kwargs)
+        venv = adapter(spec.env_id, num_envs=n_envs, seed=seed, max_episode_steps=spec.max_episode_steps,
+                       **spec.env_kwargs)
     else:
         venv = DummyVecEnv([lambda: spec.make() for _ in range(n_envs)])
         venv.seed(seed)

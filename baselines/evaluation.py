@@ -11,8 +11,10 @@ Per-episode metrics (issue 5, "Experiments"):
 * ``integrated_error`` -- the integral of |a_estimate - a_true| over the episode, A/m*s;
 * ``rms_error`` -- RMS of a_estimate - a_true over the episode, A/m;
 * ``final_error`` -- |a_estimate - a_true| at the last step, A/m;
-* ``pe_a_fraction``, ``pe_b_fraction`` -- fraction of steps at which the environment's
-  persistent-excitation test reports 3.1(a) / 3.1(b) (when it reports them).
+* ``pe_a_fraction``, ``pe_b_fraction`` -- fraction of steps at which the windowed test
+  of the estimation layer (:class:`hyst_gym.estimation.PEMonitor`, window
+  :data:`PE_WINDOW_S`) finds 3.1(a) / 3.1(b), from the integrand of (22) and the
+  curvature sign that the environment reports in ``info`` (truth known in simulation).
 """
 
 from __future__ import annotations
@@ -20,6 +22,9 @@ from __future__ import annotations
 import numpy as np
 
 from .environment import EpisodeSpec, make_vector_env, step_info
+
+#: window of the persistent-excitation test, s
+PE_WINDOW_S = 1.0
 
 METRICS = ("settle_time_s", "integrated_error", "rms_error", "final_error", "pe_a_fraction", "pe_b_fraction")
 
@@ -52,7 +57,7 @@ def _run_batch(agent, spec, seeds, band_fraction, keep_traces):
         observations, infos = reset_vector_env(env, seeds)
         episode_start = np.ones(n, dtype=bool)
         active = np.ones(n, dtype=bool)
-        columns = {key: [] for key in ("time", "field", "a_estimate", "a_true", "pe_a", "pe_b")}
+        columns = {key: [] for key in ("time", "field", "a_estimate", "a_true", "pe_integrand", "curvature_sign")}
         lengths = np.zeros(n, dtype=np.int64)
         while active.any():
             actions, _ = agent.predict(observations, episode_start=episode_start, deterministic=True)
@@ -66,6 +71,7 @@ def _run_batch(agent, spec, seeds, band_fraction, keep_traces):
     finally:
         env.close()
     data = {key: np.array(v) for key, v in columns.items()}  # (T, n)
+    data["pe_a"], data["pe_b"] = _pe_conditions(data["pe_integrand"], data["curvature_sign"], spec.dt)
     records, traces = [], []
     for i, seed in enumerate(seeds):
         length = int(lengths[i])
@@ -78,6 +84,23 @@ def _run_batch(agent, spec, seeds, band_fraction, keep_traces):
             traces.append({"seed": seed, "time": time, "field": data["field"][rows, i],
                            "a_estimate": estimate, "a_true": truth})
     return records, traces
+
+
+def _pe_conditions(integrand, curvature, dt):
+    """Per-step 3.1(a)/(b) flags (T, n) from the windowed test; nan where the data are absent."""
+    from hyst_gym.estimation import PEMonitor
+
+    steps, n = integrand.shape
+    flags_a, flags_b = np.full((steps, n), np.nan), np.full((steps, n), np.nan)
+    if not np.isfinite(integrand).any():
+        return flags_a, flags_b
+    monitor = PEMonitor(n, max(2, int(round(PE_WINDOW_S / dt))))
+    for t in range(steps):
+        present = np.isfinite(integrand[t])
+        monitor.update(np.nan_to_num(integrand[t]), np.nan_to_num(curvature[t], nan=1.0), dt)
+        flags_a[t] = np.where(present, monitor.condition_a, np.nan)
+        flags_b[t] = np.where(present, monitor.condition_b, np.nan)
+    return flags_a, flags_b
 
 
 def episode_metrics(seed, time, a_estimate, a_true, pe_a, pe_b, dt, band_fraction=1e-3) -> dict:

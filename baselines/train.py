@@ -23,10 +23,10 @@ from .scenarios import SCENARIOS, VALIDATION_SEEDS, scenario_spec
 
 #: Default hyperparameters (small networks: the observation is a short stacked vector).
 DEFAULT_HYPERPARAMS = {
-    "ppo": {"n_steps": 256, "batch_size": 256, "n_epochs": 5, "learning_rate": 3e-4, "gamma": 0.99,
+    "ppo": {"n_steps": 256, "batch_size": 256, "n_epochs": 10, "learning_rate": 3e-4, "gamma": 0.995,
             "gae_lambda": 0.95, "ent_coef": 0.0, "policy_kwargs": {"net_arch": [64, 64]}},
     "sac": {"buffer_size": 100_000, "learning_starts": 1000, "batch_size": 256, "learning_rate": 3e-4,
-            "gamma": 0.99, "train_freq": 1, "gradient_steps": 1, "policy_kwargs": {"net_arch": [64, 64]}},
+            "gamma": 0.995, "train_freq": 1, "gradient_steps": 1, "policy_kwargs": {"net_arch": [64, 64]}},
 }
 
 

@@ -210,7 +210,7 @@ def run(profile="full", results=DEFAULT_RESULTS, workers=1, backend="local", sce
         {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
          "cpu_count": os.cpu_count(), "python": sys.version.split()[0], "workers": workers, "backend": backend,
          "profile": profile}, indent=2))
-    all_records = []
+    all_records, start = [], time.time()
     for stage in declared_jobs(profile, scenarios):
         todo = [j for j in stage if force or not _output_path(j, raw).exists()]
         # longest first: training jobs, then the rest, so that the pool stays busy
@@ -220,6 +220,9 @@ def run(profile="full", results=DEFAULT_RESULTS, workers=1, backend="local", sce
             for record in records:
                 handle.write(json.dumps(record) + "\n")
         all_records += records
+    if all_records:
+        (raw / "run_wall.json").write_text(json.dumps({"wall_s": round(time.time() - start, 1),
+                                                       "jobs_run": len(all_records), "workers": workers}))
     return all_records
 
 
