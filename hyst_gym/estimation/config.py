@@ -115,7 +115,7 @@ class LumpedPlant:
 
     #: Defaults for the paper's §4.2 case: gamma from the paper, eps (units of y_eps =
     #: B^T P ytilde) chosen here (see README, section estimation).
-    default_eps = 1e-9
+    default_eps = 1e-8
     default_gamma = 5e10
 
     def __post_init__(self):

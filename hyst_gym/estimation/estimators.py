@@ -52,8 +52,8 @@ def hold_matrices(state_matrix: np.ndarray, input_vector: np.ndarray, dt: float)
 class AdaptiveEstimator:
     """Shared machinery of the bank-based estimators (see the module docstring).
 
-    Subclasses define the feedback term of ``yhat`` (:meth:`_correction`) and the
-    parameter law (:meth:`_theta_rate`). The min-max solution (15)/(25) is computed at
+    Subclasses define the saturation feedback of ``yhat`` and the regressor of the
+    parameter law (:meth:`_feedback`). The min-max solution (15)/(25) is computed at
     every step for every estimator so that all of them expose the same observation
     arrays.
 
@@ -234,25 +234,48 @@ class AdaptiveEstimator:
         if not (dt > 0.0 and np.isfinite(dt)):
             raise ValueError(f"{type(self).__name__}.update: dt must be a finite number > 0 s, got {dt!r}")
         if dt != self._hold_dt:
-            self._hold = hold_matrices(self._A, self._B, float(dt))
-            self._hold_dt = dt
-        phi_matrix, hold0, hold1 = self._hold
-        # Feedback and parameter law from the state at the start of the step.
-        drive = self._f_hat + self._correction()
-        theta_rate = self._theta_rate()
+            self._set_hold(float(dt))
+        phi_matrix, hold0, hold1, weight = self._hold
         f_start = self._f_hat.copy()
         self._before_advance()
         self.bank.advance(field)
-        f_end, _, _ = self.bank.evaluate(self._theta, *self._f_scratch)
-        self._yhat = (self._yhat @ phi_matrix.T + drive[:, None] * hold0[None, :]
-                      + (f_end - f_start)[:, None] * hold1[None, :])
+        f_end, slope_end, _ = self.bank.evaluate(self._theta, *self._f_scratch)
+        measured = measured.reshape(self._y.shape)
+        # Open-loop response of yhat over the step (f(thetahat) linear in time) ...
+        free = (self._yhat @ phi_matrix.T + f_start[:, None] * hold0[None, :]
+                + (f_end - f_start)[:, None] * hold1[None, :]) - measured
+        # ... plus the saturation feedback, taken implicitly (at the end of the step):
+        # z + kappa_sign(z) * sat(z/eps) = z_free with z = ytilde (scalar) or B^T P ytilde.
+        # An explicit (held) feedback chatters across the boundary layer as soon as
+        # gain*dt exceeds eps, which biases thetahat (the two signs use different phi).
+        z_free = free[:, 0] if not self._vector else free @ self._BP
+        gain_pos, gain_neg, phi_pos, phi_neg = self._feedback(f_end, slope_end)
+        offset = self._dead_zone_offset
+        z = _solve_boundary_layer(z_free, weight * (gain_pos - offset), weight * (gain_neg - offset), self._eps)
+        positive = z >= 0.0
+        sat = np.clip(z / self._eps, -1.0, 1.0)
+        applied = (np.where(positive, gain_pos, gain_neg) - offset) * sat
+        self._ytilde = free - applied[:, None] * hold0[None, :]
+        self._yhat = self._ytilde + measured
+        y_eps = z if self._vector else z - self._eps * sat
         self._after_advance(measured, dt)
+        theta_rate = -self._gamma * self._gain * y_eps * np.where(positive, phi_pos, phi_neg)
         self._theta = self._next_theta(theta_rate, dt)
-        self._y[...] = measured.reshape(self._y.shape)
+        self._y[...] = measured
         self._refresh()
         return self.a_estimate
 
     # ------------------------------------------------------------------ internals
+
+    def _set_hold(self, dt):
+        phi_matrix, hold0, hold1 = hold_matrices(self._A, self._B, dt)
+        # weight: how much one unit (A/m) of held feedback moves z over the step
+        weight = hold0[0] if not self._vector else float(self._BP @ hold0)
+        if not weight > 0:
+            raise ValueError(f"{type(self).__name__}.update: dt = {dt!r} s is too long for this plant "
+                             f"(B^T P G0 = {weight!r} <= 0); use a shorter control step")
+        self._hold = (phi_matrix, hold0, hold1, weight)
+        self._hold_dt = dt
 
     def _refresh(self):
         """Bank values at thetahat, errors and the min-max solution at the current time."""
@@ -271,19 +294,29 @@ class AdaptiveEstimator:
         minmax_batch(self.bank.grid, self.bank._magnetization, self._theta, self._f_hat, self._slope,
                      self._sign, self._nu, self._phi)
 
+    def _minmax_both_signs(self, f_value, slope):
+        """(nu+, nu-, phi+, phi-) of (15) at the current bank and thetahat, for both signs."""
+        E = self.n_systems
+        nu_pos, nu_neg, phi_pos, phi_neg = (np.empty(E) for _ in range(4))
+        grid, values = self.bank.grid, self.bank._magnetization
+        minmax_batch(grid, values, self._theta, f_value, slope, np.ones(E), nu_pos, phi_pos)
+        minmax_batch(grid, values, self._theta, f_value, slope, -np.ones(E), nu_neg, phi_neg)
+        return nu_pos, nu_neg, phi_pos, phi_neg
+
     def _next_theta(self, theta_rate, dt):
         return np.clip(self._theta + dt * theta_rate, self._lo, self._hi)
 
-    def _dead_zone_term(self):
-        """``lambda*eps*sat/nu`` of (14) in units of M (0 for the vector law (24))."""
+    @property
+    def _dead_zone_offset(self):
+        """``lambda*eps/nu``: the dead-zone term ``+lambda*eps*sat`` of (14) written as a
+        feedback gain in A/m (0 for the vector law (24), which has no such term)."""
         if self._vector:
             return 0.0
-        return self.config.plant.lam * self._eps * self._sat / self._gain
+        return self.config.plant.lam * self._eps / self._gain
 
-    def _correction(self):  # pragma: no cover - abstract
-        raise NotImplementedError
-
-    def _theta_rate(self):  # pragma: no cover - abstract
+    def _feedback(self, f_value, slope):  # pragma: no cover - abstract
+        """Gains (A/m) of ``-gain*sat`` in yhat for z >= 0 / z < 0, and the matching
+        regressors phi of the parameter law: ``(gain+, gain-, phi+, phi-)``, each (E,)."""
         raise NotImplementedError
 
     def _reset_extra(self, rows):
@@ -361,11 +394,8 @@ class MinMaxEstimator(AdaptiveEstimator):
 
     name = "minmax"
 
-    def _correction(self):
-        return self._dead_zone_term() - self._nu * self._sat
-
-    def _theta_rate(self):
-        return -self._gamma * self._y_eps * self._gain * self._phi
+    def _feedback(self, f_value, slope):
+        return self._minmax_both_signs(f_value, slope)
 
 
 class GradientEstimator(AdaptiveEstimator):
@@ -379,11 +409,9 @@ class GradientEstimator(AdaptiveEstimator):
 
     name = "gradient"
 
-    def _correction(self):
-        return self._dead_zone_term()
-
-    def _theta_rate(self):
-        return -self._gamma * self._y_eps * self._gain * self._slope
+    def _feedback(self, f_value, slope):
+        zero = np.zeros(self.n_systems)
+        return zero, zero, slope, slope
 
 
 class MultipleModelEstimator(AdaptiveEstimator):
@@ -433,17 +461,15 @@ class MultipleModelEstimator(AdaptiveEstimator):
         self._node_output[rows] = self._y[rows][:, None, :]
         self._cost[rows] = 0.0
 
-    def _correction(self):
-        return self._dead_zone_term()
-
-    def _theta_rate(self):
-        return np.zeros(self.n_systems)
+    def _feedback(self, f_value, slope):
+        zero = np.zeros(self.n_systems)
+        return zero, zero, zero, zero
 
     def _before_advance(self):
         self._nodes_start[...] = self.bank._magnetization
 
     def _after_advance(self, measured, dt):
-        phi_matrix, hold0, hold1 = self._hold
+        phi_matrix, hold0, hold1, _ = self._hold
         nodes_end = self.bank._magnetization
         self._node_output = (self._node_output @ phi_matrix.T + self._nodes_start[..., None] * hold0
                              + (nodes_end - self._nodes_start)[..., None] * hold1)
@@ -467,6 +493,21 @@ class MultipleModelEstimator(AdaptiveEstimator):
         estimate = grid[best] + offset * spacing
         informative = np.ptp(cost, axis=1) > 0.0  # all nodes agree: no information yet
         return np.clip(np.where(informative, estimate, self._theta), self._lo, self._hi)
+
+
+def _solve_boundary_layer(z_free, kappa_pos, kappa_neg, eps):
+    """Solve ``z + kappa_sign(z)*sat(z/eps) = z_free`` for z, elementwise.
+
+    ``kappa_pos`` applies where z >= 0, ``kappa_neg`` where z < 0; both must exceed
+    ``-eps`` so that the left side is continuous and strictly increasing in z (a unique
+    root, found piece by piece).
+    """
+    outer_pos = z_free >= eps + kappa_pos
+    inner_pos = z_free >= 0.0
+    inner_neg = z_free > -eps - kappa_neg
+    return np.where(outer_pos, z_free - kappa_pos,
+                    np.where(inner_pos, z_free / (1.0 + kappa_pos / eps),
+                             np.where(inner_neg, z_free / (1.0 + kappa_neg / eps), z_free + kappa_neg)))
 
 
 ESTIMATORS = {cls.name: cls for cls in (MinMaxEstimator, GradientEstimator, MultipleModelEstimator)}
