@@ -10,7 +10,7 @@ temperature column).
 Realism versus independence from the fitter: the generator integrates on a time grid 4x
 finer than the recording, with a 4x finer field substep, and decimates, so the fitted model
 never reproduces the generator's numbers exactly. The recording lasts a fraction of a
-second (20-30 kHz sampling, so that the transducer's kHz dynamics are resolved); the
+second (40-60 kHz sampling, so that the transducer's kHz dynamics are resolved); the
 thermal time constant is compressed to the record length (a tens-of-ms heating time is
 not realistic for a Terfenol-D rod -- it stands for minutes-long records of a real coil).
 
@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..physics.fem import FEMRod
+from ..physics.transducers import RodParams
 from .kernels import AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, lti_response, second_order_system, simulate_members
 from .model import EFFECTS, PAPER_CHAT, PAPER_KHAT
 from .recording import Recording, write_recording
@@ -49,7 +51,7 @@ def _excitation(rng, time):
     amplitude = rng.uniform(4e4, 1e5)                       # A/m
     bias = rng.uniform(0.0, 0.4) * amplitude                # recorded DC bias, A/m
     n_sines = int(rng.integers(2, 4))
-    freqs = np.sort(rng.uniform(8.0, 60.0, n_sines))        # Hz
+    freqs = np.sort(rng.uniform(20.0, 120.0, n_sines))        # Hz
     weights = rng.dirichlet(np.ones(n_sines))
     phases = rng.uniform(0, 2 * np.pi, n_sines)
     carrier = sum(w * np.sin(2 * np.pi * f * time + p) for w, f, p in zip(weights, freqs, phases))
@@ -57,53 +59,38 @@ def _excitation(rng, time):
     env_f = rng.uniform(1.0, 3.0) / duration                 # slow envelope -> minor loops
     envelope = 0.55 + 0.45 * np.cos(2 * np.pi * env_f * time + rng.uniform(0, 2 * np.pi))
     field = bias + amplitude * envelope * carrier
-    # a ramp segment and a few fast transitions (rise 0.2-0.5 ms) that excite kHz dynamics
+    # a ramp segment and a few fast transitions (rise 0.05-0.2 ms) that excite kHz dynamics
     t_ramp = rng.uniform(0.1, 0.6) * duration
     field += 0.15 * amplitude * np.clip((time - t_ramp) / (0.2 * duration), 0.0, 1.0) * rng.choice([-1, 1])
     for _ in range(int(rng.integers(3, 6))):
         t0 = rng.uniform(0.05, 0.95) * duration
-        rise = rng.uniform(2e-4, 5e-4)
+        rise = rng.uniform(5e-5, 2e-4)
         size = rng.uniform(0.05, 0.15) * amplitude * rng.choice([-1, 1])
         field += size * 0.5 * (1 + np.tanh((time - t0) / (0.3 * rise)))
     return field, amplitude, bias
 
 
 def _rod_state_space(rng, n_elements=12, tip_mass=0.05):
-    """FEM rod (10): fixed at x = 0, tip mass/spring/damper, tip forcing; returns (A, B, C)
-    for the tip displacement under a unit tip force (N)."""
-    r = {k: v * rng.uniform(0.95, 1.05) for k, v in ROD.items()}
-    h = r["L"] / n_elements
-    n = n_elements
-    K = np.zeros((n, n)); Mm = np.zeros((n, n)); D = np.zeros((n, n))
-    ke = np.array([[1, -1], [-1, 1]])
-    me = np.array([[2, 1], [1, 2]]) * r["rho"] * r["A"] * h / 6
-    for e in range(n):
-        nodes = [e - 1, e]  # node -1 is the clamped end
-        for i in range(2):
-            for j in range(2):
-                if nodes[i] >= 0 and nodes[j] >= 0:
-                    K[nodes[i], nodes[j]] += r["Y"] * r["A"] / h * ke[i, j]
-                    D[nodes[i], nodes[j]] += r["cD"] * r["A"] / h * ke[i, j]
-                    Mm[nodes[i], nodes[j]] += me[i, j]
-    K[-1, -1] += r["kL"]; D[-1, -1] += r["cL"]; Mm[-1, -1] += tip_mass
-    Minv = np.linalg.inv(Mm)
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ D]])
-    force = np.zeros(n); force[-1] = 1.0
-    B = np.concatenate([np.zeros(n), Minv @ force])
-    C = np.zeros(2 * n); C[n - 1] = 1.0
-    static = float(np.linalg.solve(K, force)[-1])
-    return A, B, C, static
+    """FEM rod (10) from :mod:`hyst_gym.physics.fem` with rod data drawn within +-5 % of the
+    GUIDE's and a light tip mass; returns (A, B, C, static tip compliance in m/N)."""
+    rod = RodParams(**{k: v * rng.uniform(0.95, 1.05) for k, v in ROD.items()}, ML=tip_mass)
+    fem = FEMRod(rod=rod, n_elements=n_elements)
+    A, b = fem.state_matrices()
+    C = np.zeros(2 * n_elements)
+    C[n_elements - 1] = 1.0
+    static = float(np.linalg.solve(fem.stiffness_matrix(), fem.forcing_vector())[-1])
+    return A, b, C, static
 
 
 def make_recording(effect: str = "none", seed: int = 0, strength: float = 1.0, output: str = "both",
-                   n_samples: int = 8000) -> tuple[Recording, dict]:
+                   n_samples: int = 5000) -> tuple[Recording, dict]:
     """Draw a synthetic recording with ``effect`` concealed in it; returns (recording, sidecar)."""
     recording, sidecar, _ = make_recording_with_truth(effect, seed, strength, output, n_samples)
     return recording, sidecar
 
 
 def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: float = 1.0, output: str = "both",
-                              n_samples: int = 8000) -> tuple[Recording, dict, dict]:
+                              n_samples: int = 5000) -> tuple[Recording, dict, dict]:
     """As :func:`make_recording`, plus the true parameters (for tests and studies only)."""
     if effect not in GENERATOR_EFFECTS:
         raise ValueError(f"--effect must be one of {', '.join(GENERATOR_EFFECTS)}, got {effect!r}")
@@ -117,7 +104,7 @@ def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: flo
         raise ValueError(f"--samples must be >= 400, got {n_samples!r}")
     n_samples = int(n_samples)
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 6]))
-    fs = rng.uniform(20e3, 30e3)
+    fs = rng.uniform(40e3, 60e3)
     time = np.arange(n_samples) / fs
     fine_time = np.arange(n_samples * OVERSAMPLE) / (fs * OVERSAMPLE)
     field, amplitude, bias = _excitation(rng, fine_time)
@@ -151,7 +138,7 @@ def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: flo
                                      25.0, AMBIENT_TEMPERATURE)[:, 0]
     M0 = float(np.median(magnetization))
     if effect == "rod_dynamics":
-        A, B, C, static = _rod_state_space(effect_rng, tip_mass=0.05 / max(strength, 1e-3))
+        A, B, C, static = _rod_state_space(effect_rng, tip_mass=0.01 / max(strength, 1e-3))
         # same static gain as the lumped model it replaces: zetahat/khat per unit (M - M0)
         gain = zetahat / khat / static
         displacement = lti_response(fine_time, gain * (magnetization - M0), A, B, C, start="steady")
@@ -189,7 +176,7 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, required=True, help="seed for parameters, excitation and noise")
     parser.add_argument("--strength", type=float, default=1.0, help="size of the effect (default 1)")
     parser.add_argument("--output", default="both", choices=("magnetization", "displacement", "both"))
-    parser.add_argument("--samples", type=int, default=8000, help="number of samples (default 8000)")
+    parser.add_argument("--samples", type=int, default=5000, help="number of samples (default 5000)")
     parser.add_argument("--out", required=True, type=Path, help="CSV file to write (sidecar .json beside it)")
 
 

@@ -15,7 +15,8 @@ the base model when those parameters vanish:
 ``field_bias``                  ``H0`` (A/m) added to the recorded field
 ``eddy_current``                ``k_e`` (s): ``H_eff = H - k_e*dM/dt``
 ``thermal_drift``               ``heating`` (K/s per (A/m)^2) and ``tau_th`` (s): coil
-                                temperature rise, ``a(T) = a*T/T_amb`` (4)
+                                temperature rise, ``a(T) = a*T/T_amb`` (4) (slope a/T_amb),
+                                ``beta_Ms`` (1/K): ``Ms(T) = Ms*(1 - beta_Ms*(T - T_amb))``
 ``sensor_lag``                  ``tau_m``, ``tau_x`` (s): first-order sensor lags
 ``quadratic_magnetostriction``  ``kappa`` (m/A): forcing ``zetahat*((M-M0) + kappa*(M-M0)^2)``
                                 (the M^2 law of (12) about a bias gives kappa = 1/(2*M0))
@@ -47,7 +48,7 @@ EFFECTS = ("thermal_drift", "eddy_current", "quadratic_magnetostriction", "rod_d
 EFFECT_PARAMETERS = {
     "field_bias": ("H0",),
     "eddy_current": ("k_e",),
-    "thermal_drift": ("heating", "tau_th"),
+    "thermal_drift": ("heating", "tau_th", "beta_Ms"),
     "sensor_lag": ("tau_m", "tau_x"),
     "quadratic_magnetostriction": ("kappa",),
     "rod_dynamics": ("f2", "zeta2", "g2"),
@@ -159,7 +160,7 @@ class Model:
         alpha = values["rho"] * a / (Ms * slope_factor(curve))
         row = dict(a=a, k=values["k"], alpha=alpha, Ms=Ms, c=values["c"], H0=values.get("H0", 0.0),
                    k_e=values.get("k_e", 0.0), heating=values.get("heating", 0.0),
-                   tau_th=values.get("tau_th", 1.0), beta_Ms=0.0)
+                   tau_th=values.get("tau_th", 1.0), beta_Ms=values.get("beta_Ms", 0.0))
         return np.array([row[c] for c in MAGNETIC_COLUMNS])
 
     def magnetization(self, values_list) -> np.ndarray:
@@ -296,6 +297,7 @@ def extension_parameters(recording: Recording, structure: Structure, base_values
         upper = 300.0 / (mean_sq * duration)  # at most ~300 K of heating over the record
         out["heating"] = Parameter("heating", 0.01 * upper, 0.0, upper, "K/s per (A/m)^2", scale=0.01 * upper)
         out["tau_th"] = Parameter("tau_th", duration, 5 * dt, 1e3 * duration, "s", log=True)
+        out["beta_Ms"] = Parameter("beta_Ms", 0.0, -0.01, 0.01, "1/K", scale=1e-3)
     elif effect == "sensor_lag":
         for name, channel in (("tau_m", "magnetization"), ("tau_x", "displacement")):
             free = channel in recording.channels and (channel == "magnetization" or structure.transducer != "none")

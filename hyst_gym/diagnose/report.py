@@ -20,7 +20,7 @@ EFFECT_WORDS = {
     "field_bias": "an unrecorded DC bias field H0 (e.g. a permanent magnet) added to H",
     "anhysteretic_shape": "the other anhysteretic curve (Ising (2) <-> Langevin (3))",
 }
-UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "tau_th": "s", "tau_m": "s", "tau_x": "s",
+UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "tau_th": "s", "beta_Ms": "1/K", "tau_m": "s", "tau_x": "s",
          "kappa": "m/A", "f2": "Hz", "zeta2": "", "g2": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "",
          "alpha": ""}
 

@@ -1,0 +1,55 @@
+"""End to end: the five stages name a concealed effect, and say `none` on clean data."""
+
+import json
+
+import numpy as np
+import pytest
+
+from hyst_gym import cli
+from hyst_gym.diagnose import diagnose, make_recording, write_recording
+
+
+@pytest.fixture(scope="module")
+def bias_report():
+    rec, _ = make_recording("field_bias", 21, n_samples=1000)
+    return diagnose(rec, effects=["field_bias", "sensor_lag"], progress=False)
+
+
+def test_concealed_bias_is_named_and_fixed(bias_report):
+    r = bias_report
+    assert r.verdict == "field_bias"
+    assert r.improvement > 0.5
+    assert r.chosen.heldout_rmse < 1.5          # within noise after the extension
+    assert abs(r.chosen.fit.values["H0"]) > 10 * r.chosen.fit.uncertainties["H0"]
+
+
+def test_report_json_has_the_issue_keys(bias_report, tmp_path):
+    from hyst_gym.diagnose import write_json, write_plots
+    data = json.loads(write_json(bias_report, tmp_path / "r.json").read_text())
+    for key in ("verdict", "confidence", "explanation", "baseline", "candidates", "located", "improvement"):
+        assert key in data
+    assert {"heldout_rmse", "params"} <= set(data["baseline"])
+    assert all({"effect", "heldout_rmse", "bic", "params"} <= set(c) for c in data["candidates"])
+    paths = write_plots(bias_report, tmp_path / "plots")
+    assert all(p.stat().st_size > 10_000 for p in paths)
+
+
+def test_clean_recording_gives_none_via_cli(tmp_path, capsys):
+    rec, side = make_recording("none", 22, n_samples=1000, output="magnetization")
+    path = write_recording(tmp_path / "clean.csv", rec, side)
+    assert "effect" not in json.dumps(side) and list(side) == ["material", "notes"]
+    status = cli.main(["diagnose", str(path), "--quiet", "--json", str(tmp_path / "c.json")])
+    assert status == 0
+    data = json.loads((tmp_path / "c.json").read_text())
+    assert data["verdict"] == "none" and data["improvement"] == 0.0
+    assert data["baseline"]["heldout_rmse"] < 1.3
+
+
+def test_generator_is_deterministic_and_conceals():
+    a, _ = make_recording("thermal_drift", 5, n_samples=600)
+    b, _ = make_recording("thermal_drift", 5, n_samples=600)
+    c, _ = make_recording("thermal_drift", 6, n_samples=600)
+    assert np.array_equal(a.magnetization, b.magnetization) and not np.array_equal(a.field, c.field)
+    assert a.temperature is None and set(a.channels) == {"magnetization", "displacement"}
+    with pytest.raises(ValueError, match="displacement only"):
+        make_recording("rod_dynamics", 1, output="magnetization")

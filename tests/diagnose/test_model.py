@@ -1,0 +1,75 @@
+"""The fitted model's pieces: exact LTI steps, nesting of extensions, the fitter on known truth."""
+
+import numpy as np
+import pytest
+
+from hyst_gym.diagnose.fit import local_fit
+from hyst_gym.diagnose.kernels import AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, lti_response, simulate_members
+from hyst_gym.diagnose.make_recording import make_recording_with_truth
+from hyst_gym.diagnose.model import Model, Structure, base_parameters, extension_parameters, noise_level
+from hyst_gym.physics import simulate_magnetization
+
+
+def test_first_order_lag_is_exact_for_ramps():
+    """FOH is exact for piecewise-linear input: compare with the closed-form ramp response."""
+    tau = 0.01
+    t = np.sort(np.concatenate([np.linspace(0, 0.1, 57), [0.0123, 0.0456]]))  # non-uniform steps
+    u = 3.0 * t
+    y = lti_response(t, u, [[-1 / tau]], [1 / tau], [1.0])
+    exact = 3.0 * (t - tau * (1 - np.exp(-t / tau)))
+    assert np.max(np.abs(y - exact)) < 1e-12
+
+
+def test_plain_members_match_physics_kernel():
+    """With every extension off, the extended kernel is the physics model (6) driven from 0."""
+    time = np.linspace(0, 1, 801)
+    field = 8e4 * np.sin(2 * np.pi * 2 * time) * np.exp(-time)
+    row = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=0, heating=0, tau_th=1, beta_Ms=0)
+    ours = simulate_members(time, field, np.array([[row[c] for c in MAGNETIC_COLUMNS]]), 0, 10.0, AMBIENT_TEMPERATURE)[:, 0]
+    ref = simulate_magnetization(np.concatenate([[0.0], field]), max_field_step=10.0, a=6000, k=1500,
+                                 alpha=-0.05, Ms=8e5, c=0.2)[1:]
+    assert np.max(np.abs(ours - ref)) < 1e-9 * 8e5
+
+
+def test_eddy_current_converges_and_lags():
+    """The semi-implicit eddy step converges under time refinement and widens the loop."""
+    def run(n, k_e):
+        time = np.linspace(0, 0.05, n)
+        field = 6e4 * np.sin(2 * np.pi * 40 * time)
+        row = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=k_e, heating=0, tau_th=1, beta_Ms=0)
+        return simulate_members(time, field, np.array([[row[c] for c in MAGNETIC_COLUMNS]]), 0, 10.0,
+                                AMBIENT_TEMPERATURE)[:, 0]
+    coarse, fine, finest = run(501, 2e-5)[::1], run(2001, 2e-5)[::4], run(8001, 2e-5)[::16]
+    assert np.max(np.abs(fine - finest)) < 0.5 * np.max(np.abs(coarse - finest))
+    assert np.max(np.abs(finest - run(8001, 0.0)[::16])) > 1e4   # the effect is not negligible
+
+
+@pytest.mark.parametrize("effect", ["field_bias", "eddy_current", "thermal_drift", "sensor_lag",
+                                    "quadratic_magnetostriction", "rod_dynamics"])
+def test_extensions_reduce_to_base_when_switched_off(effect):
+    rec, _, truth = make_recording_with_truth("none", 3, n_samples=600)
+    base = Model(rec, Structure(), base_parameters(rec, Structure()), 100.0)
+    values = base.values()
+    structure = Structure(extension=effect)
+    extra = extension_parameters(rec, structure, values)
+    ext = Model(rec, structure, {**base.parameters, **extra}, 100.0)
+    off = dict(values, **{n: 0.0 for n in extra if n in ("H0", "k_e", "heating", "tau_m", "tau_x", "kappa", "g2",
+                                                        "beta_Ms")})
+    off.update({n: extra[n].value for n in extra if n not in off})
+    a, b = base.predict(values), ext.predict(off)
+    for ch in a:
+        assert np.array_equal(a[ch], b[ch])
+
+
+def test_base_fit_recovers_truth_to_noise():
+    rec, _, truth = make_recording_with_truth("none", 11, n_samples=1500)
+    structure = Structure()
+    model = Model(rec, structure, base_parameters(rec, structure), float(np.ptp(rec.field)) / 1000)
+    weights = {ch: noise_level(rec.output(ch)) for ch in rec.channels}
+    start = {n: truth[n] * 1.05 for n in ("a", "k", "Ms", "khat", "chat", "zetahat", "M0")}
+    start.update(rho=truth["rho"], c=truth["c"])
+    fit = local_fit(model, weights, np.ones(rec.size, bool), start, max_nfev=60)
+    assert fit.sse / fit.n_residuals < 1.3          # explained to within noise
+    for name in ("a", "k", "Ms"):
+        assert abs(fit.values[name] / truth[name] - 1) < 0.03
+        assert fit.uncertainties[name] > 0
