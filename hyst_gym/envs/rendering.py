@@ -116,3 +116,29 @@ def record_episode(env, policy=None, seed: int | None = None, path=None) -> list
 
 
 __all__ = ["draw_figure", "figure_to_array", "record_episode", "save_episode_figure", "show_human"]
+
+
+def main(argv=None) -> int:
+    """Render the README frame: one default Excitation-v0 episode under a 0.25 Hz sine command.
+
+    ``python -m hyst_gym.envs.rendering [PATH]`` (default docs/figures/envs/excitation_episode.png).
+    """
+    import sys
+    import gymnasium
+    argv = sys.argv[1:] if argv is None else argv
+    path = argv[0] if argv else "docs/figures/envs/excitation_episode.png"
+    env = gymnasium.make("hyst_gym:hyst_gym/Excitation-v0", render_mode="rgb_array")
+    dt = env.unwrapped.config.dt
+    clock = {"step": 0}
+
+    def sine_command(obs):
+        clock["step"] += 1
+        return np.array([np.sin(2 * np.pi * 0.25 * clock["step"] * dt)], dtype=np.float32)
+
+    record_episode(env, sine_command, seed=0, path=path)
+    print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,79 @@
+"""Speed of the default ``hyst_gym/Excitation-v0`` under random actions (``hyst-gym bench``).
+
+Measures env steps per second and simulated seconds per wall second for a single env
+(through ``gymnasium.make``, wrappers included) and for the native vector env at
+n = 1, 64 and 1024. Targets (issue 4, 2-core machine): >= 5,000 steps/s single and
+>= 100,000 aggregate steps/s at n = 1024. Where the time goes: run
+``python -m cProfile -s tottime -m hyst_gym.envs.benchmark``.
+"""
+
+from __future__ import annotations
+
+import time
+
+import gymnasium
+import numpy as np
+
+from .config import EnvConfig
+
+ENV_ID = "hyst_gym/Excitation-v0"
+VECTOR_SIZES = (1, 64, 1024)
+#: wall-clock seconds spent timing each case (after a warm-up)
+TIME_BUDGET = 2.0
+
+
+def _time_single(budget: float) -> float:
+    env = gymnasium.make(ENV_ID)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1.0, 1.0, (4096, 1)).astype(np.float32)
+    env.reset(seed=0)
+    for action in actions[:200]:  # warm-up (compiled kernels load from the numba cache)
+        env.step(action)
+    steps = 0
+    start = time.perf_counter()
+    while time.perf_counter() - start < budget:
+        for action in actions[:500]:
+            _, _, terminated, truncated, _ = env.step(action)
+            if terminated or truncated:
+                env.reset()
+        steps += 500
+    return steps / (time.perf_counter() - start)
+
+
+def _time_vector(n: int, budget: float) -> float:
+    venv = gymnasium.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point")
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1.0, 1.0, (16, n, 1))
+    venv.reset(seed=0)
+    for k in range(3):
+        venv.step(actions[k])
+    calls = 0
+    start = time.perf_counter()
+    while time.perf_counter() - start < budget:
+        venv.step(actions[calls % 16])
+        calls += 1
+    return calls * n / (time.perf_counter() - start)
+
+
+def run_benchmark(report) -> dict:
+    """Print and return the env speeds: ``env_single_steps_per_s`` and
+    ``env_vector_steps_per_s`` (keyed by n as a string)."""
+    config = EnvConfig()
+    report(f"config: {ENV_ID} defaults: {config.summary()}")
+    report(f"random actions, {TIME_BUDGET:g} s per case; dt = {config.dt:g} s of simulated time per step")
+    single = _time_single(TIME_BUDGET)
+    report(f"single env (gymnasium.make): {single:,.0f} steps/s = {single * config.dt:,.1f} simulated s per wall s"
+           f"  (target >= 5,000 steps/s)")
+    vector = {}
+    for n in VECTOR_SIZES:
+        rate = _time_vector(n, TIME_BUDGET)
+        vector[str(n)] = rate
+        target = "  (target >= 100,000)" if n == 1024 else ""
+        report(f"native vector env n={n}: {rate:,.0f} env steps/s = {rate * config.dt:,.0f} simulated s per "
+               f"wall s{target}")
+    return {"env_single_steps_per_s": single, "env_vector_steps_per_s": vector,
+            "env_benchmark_config": config.summary()}
+
+
+if __name__ == "__main__":
+    run_benchmark(print)
