@@ -25,7 +25,7 @@ import numpy as np
 
 def configure_parser(parser):
     parser.add_argument("--out", default="demo_out", help="folder for figures and tables (default: demo_out)")
-    parser.add_argument("--episodes", type=int, default=20, help="held-out draws per agent (default 20)")
+    parser.add_argument("--episodes", type=int, default=10, help="held-out draws per agent (default 10)")
     parser.add_argument("--train-ppo", action="store_true", help="train a small PPO policy instead of loading")
     parser.add_argument("--ppo-steps", type=int, default=20_000, help="steps when training PPO (default 20000)")
     parser.add_argument("--physics-only", action="store_true", help="only stage 1")

@@ -202,7 +202,8 @@ def _run_ray(jobs, results, workers):
 
 
 def run(profile="full", results=DEFAULT_RESULTS, workers=1, backend="local", scenarios=SCENARIO_NAMES,
-        force=False, progress=True):
+        force=False, progress=True, stages=None):
+    """Run the declared stages of ``profile`` (or the given ``stages``); returns the job records."""
     results = pathlib.Path(results)
     raw = results / "raw"
     raw.mkdir(parents=True, exist_ok=True)
@@ -211,10 +212,11 @@ def run(profile="full", results=DEFAULT_RESULTS, workers=1, backend="local", sce
          "cpu_count": os.cpu_count(), "python": sys.version.split()[0], "workers": workers, "backend": backend,
          "profile": profile}, indent=2))
     all_records, start = [], time.time()
-    for stage in declared_jobs(profile, scenarios):
+    for stage in (declared_jobs(profile, scenarios) if stages is None else stages):
         todo = [j for j in stage if force or not _output_path(j, raw).exists()]
-        # longest first: training jobs, then the rest, so that the pool stays busy
-        todo.sort(key=lambda j: (j.kind != "train", j.kind != "tune", j.key))
+        # training first (longest), then paper/drift before generalization, so that the pool
+        # stays busy and the main results come first
+        todo.sort(key=lambda j: (j.kind != "train", j.kind != "tune", j.scenario.startswith("drift_"), j.key))
         records = run_stage(todo, results, workers, backend, progress)
         with (raw / "jobs.jsonl").open("a") as handle:
             for record in records:

@@ -1,0 +1,43 @@
+"""``hyst-gym train`` and ``hyst-gym evaluate`` end to end (tiny sizes)."""
+
+import csv
+import json
+
+from hyst_gym.cli import main
+
+
+def test_train_resume_and_evaluate(tmp_path, capsys):
+    out = tmp_path / "ppo"
+    args = ["train", "--algo", "ppo", "--env", "hyst_gym/Excitation-v0", "--timesteps", "2048", "--seed", "3",
+            "--out", str(out), "--n-stack", "2", "--checkpoint-every", "1024", "--eval-every", "2048",
+            "--eval-episodes", "1", "--no-progress"]
+    assert main(args) == 0
+    config = json.loads((out / "config.json").read_text())
+    assert config["algo"] == "ppo" and config["seed"] == 3 and config["n_stack"] == 2
+    assert config["trained_steps"] == 2048 and config["env_kwargs"]["a_true"] == 7012.0
+    assert sorted(p.name for p in (out / "checkpoints").iterdir()) == ["model_1024_steps.zip", "model_2048_steps.zip"]
+    assert any((out / "tb").rglob("events.out.tfevents.*"))
+    with (out / "learning_curve.csv").open() as handle:
+        curve = list(csv.DictReader(handle))
+    assert [int(r["env_steps"]) for r in curve] == [2048]
+
+    args[args.index("--timesteps") + 1] = "4096"
+    assert main(args + ["--resume"]) == 0
+    assert "resuming from" in capsys.readouterr().out
+    assert json.loads((out / "config.json").read_text())["trained_steps"] == 4096
+
+    assert main(["evaluate", "--agent", str(out), "--env", "hyst_gym/Excitation-v0", "--episodes", "2",
+                 "--out", str(tmp_path / "eval")]) == 0
+    with (tmp_path / "eval" / "episodes.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert [int(r["seed"]) for r in rows] == [100_000, 100_001]
+    assert all(float(r["rms_error"]) > 0 for r in rows)
+
+
+def test_bad_input_is_one_line_error(tmp_path, capsys):
+    assert main(["train", "--algo", "ppo", "--timesteps", "0", "--out", str(tmp_path)]) == 2
+    assert main(["evaluate", "--agent", "no_such_agent", "--episodes", "1", "--out", str(tmp_path)]) == 2
+    assert main(["evaluate", "--agent", "ramp", "--episodes", "0", "--out", str(tmp_path)]) == 2
+    errors = capsys.readouterr().err.strip().splitlines()
+    assert len(errors) == 3 and all(line.startswith("hyst-gym ") and "error:" in line for line in errors)
+    assert "--timesteps must be > 0" in errors[0] and "no_such_agent" in errors[1]

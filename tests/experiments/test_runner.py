@@ -1,0 +1,74 @@
+"""The experiment runner: raw files, resume, local parallelism, and the Ray backend."""
+
+import csv
+import importlib.util
+import json
+
+import pytest
+
+from baselines.evaluation import run_episodes
+from baselines.registry import make_agent
+from baselines.scenarios import HELDOUT_SEEDS, SCENARIOS
+from experiments.config import Job, declared_jobs
+from experiments.run import run
+
+STAGES = [[Job("tune", "paper", "random", 0, (("episodes", 1),)),
+           Job("design", "paper", "optimal_design", 0, (("evaluations", 12),))],
+          [Job("eval", "paper", "random", 0, (("episodes", 2),)),
+           Job("eval", "paper", "optimal_design", 0, (("episodes", 2),))]]
+
+
+def _rows(path):
+    with path.open() as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_runner_writes_raw_results_resumes_and_matches_direct_evaluation(tmp_path):
+    records = run(results=tmp_path, workers=2, stages=STAGES, progress=False)
+    assert sorted(r["job"] for r in records) == sorted(j.key for stage in STAGES for j in stage)
+    raw = tmp_path / "raw"
+    tune = json.loads((raw / "tune" / "paper" / "random.json").read_text())
+    assert len(tune["grid"]) == 4 and tune["best"] in [g["params"] for g in tune["grid"]]
+    assert min(g["score"] for g in tune["grid"]) == next(g["score"] for g in tune["grid"]
+                                                         if g["params"] == tune["best"])
+    rows = _rows(raw / "eval" / "paper" / "random" / "run0.csv")
+    assert [int(r["seed"]) for r in rows] == list(HELDOUT_SEEDS[:2])
+    # the worker's result equals an in-process evaluation of the same tuned agent
+    direct, _ = run_episodes(make_agent("random", SCENARIOS["paper"], raw), SCENARIOS["paper"].spec(),
+                             HELDOUT_SEEDS[:2])
+    assert [float(r["rms_error"]) for r in rows] == pytest.approx([d["rms_error"] for d in direct], rel=1e-12)
+    assert sum(r["env_steps"] for r in records if r["kind"] == "eval") == 4 * SCENARIOS["paper"].episode_steps
+    jobs_log = (raw / "jobs.jsonl").read_text().splitlines()
+    assert len(jobs_log) == 4
+    # resume: nothing left to do
+    assert run(results=tmp_path, workers=1, stages=STAGES, progress=False) == []
+
+
+def test_ray_backend_runs_the_same_jobs_or_says_how_to_get_it(tmp_path):
+    stages = [[Job("design", "paper", "optimal_design", 0, (("evaluations", 12),))]]
+    if importlib.util.find_spec("ray") is None:
+        with pytest.raises(ValueError, match=r"pip install 'hyst-gym\[ray\]'"):
+            run(results=tmp_path, backend="ray", stages=stages, progress=False)
+        return
+    ray_records = run(results=tmp_path / "ray", workers=2, backend="ray", stages=stages, progress=False)
+    local_records = run(results=tmp_path / "local", workers=1, stages=stages, progress=False)
+    assert [r["job"] for r in ray_records] == [r["job"] for r in local_records]
+    ray_design = json.loads((tmp_path / "ray/raw/design/paper/optimal_design.json").read_text())
+    local_design = json.loads((tmp_path / "local/raw/design/paper/optimal_design.json").read_text())
+    assert ray_design["coefficients"] == local_design["coefficients"]
+
+
+def test_declared_full_profile_meets_the_protocol():
+    stages = declared_jobs("full")
+    jobs = [j for stage in stages for j in stage]
+    for config in ("ppo_stack8", "ppo_stack1", "sac_stack8"):
+        seeds = {j.run for j in jobs if j.kind == "train" and j.scenario == "paper" and j.agent == config}
+        assert len(seeds) >= 5
+    evals = [j for j in jobs if j.kind == "eval"]
+    assert all(j.option("episodes") >= 50 for j in evals)
+    # every RL evaluation comes after its training stage
+    train_stage = next(i for i, s in enumerate(stages) if any(j.kind == "train" for j in s))
+    assert all(j.kind != "eval" or not j.agent.startswith(("ppo", "sac"))
+               for stage in stages[:train_stage + 1] for j in stage)
+    with pytest.raises(ValueError, match="unknown profile"):
+        declared_jobs("huge")
