@@ -196,3 +196,142 @@ def minmax_batch(grid, values, theta_hat, value_hat, gradient, sign, out_nu, out
         nu, phi = minmax_one(grid, g, theta_hat[e], sign[e], gradient[e], xs, ys, hull)
         out_nu[e] = nu
         out_phi[e] = phi
+
+
+@njit(cache=True, inline="always")
+def _interpolate_one(grid, row, t):
+    """(f, df, d2f) of the cubic Hermite interpolant of ``row`` at ``t`` (see interpolate_bank)."""
+    j = _locate(grid, t)
+    h = grid[j + 1] - grid[j]
+    m0 = _node_slope(row, grid, j) * h
+    m1 = _node_slope(row, grid, j + 1) * h
+    f0 = row[j]
+    f1 = row[j + 1]
+    if t == grid[j]:
+        return f0, m0 / h, (-6.0 * f0 - 4.0 * m0 + 6.0 * f1 - 2.0 * m1) / (h * h)
+    if t == grid[j + 1]:
+        return f1, m1 / h, (6.0 * f0 + 2.0 * m0 - 6.0 * f1 + 4.0 * m1) / (h * h)
+    u = (t - grid[j]) / h
+    u2 = u * u
+    u3 = u2 * u
+    value = ((2.0 * u3 - 3.0 * u2 + 1.0) * f0 + (u3 - 2.0 * u2 + u) * m0
+             + (-2.0 * u3 + 3.0 * u2) * f1 + (u3 - u2) * m1)
+    slope = ((6.0 * u2 - 6.0 * u) * f0 + (3.0 * u2 - 4.0 * u + 1.0) * m0
+             + (-6.0 * u2 + 6.0 * u) * f1 + (3.0 * u2 - 2.0 * u) * m1) / h
+    curvature = ((12.0 * u - 6.0) * f0 + (6.0 * u - 4.0) * m0
+                 + (-12.0 * u + 6.0) * f1 + (6.0 * u - 2.0) * m1) / (h * h)
+    return value, slope, curvature
+
+
+@njit(cache=True, inline="always")
+def _boundary_layer(z_free, kappa_pos, kappa_neg, eps):
+    """Root z of ``z + kappa_sign(z)*sat(z/eps) = z_free`` (both kappas > -eps)."""
+    if z_free >= eps + kappa_pos:
+        return z_free - kappa_pos
+    if z_free >= 0.0:
+        return z_free / (1.0 + kappa_pos / eps)
+    if z_free > -eps - kappa_neg:
+        return z_free / (1.0 + kappa_neg / eps)
+    return z_free + kappa_neg
+
+
+@njit(cache=True)
+def observer_step(grid, values, theta, f_hat, yhat, measured, transition, hold0, hold1, weight, tuning_row,
+                  vector, eps, offset, gamma, gain, mode, dt, lo, hi,
+                  out_slope, out_curvature, out_ytilde, out_y_eps, out_sat, out_sign, out_nu, out_phi):
+    """One control step of every system after the bank has moved (see AdaptiveEstimator.update).
+
+    In place: ``theta`` (thetahat_k -> thetahat_k+1), ``f_hat`` (f(thetahat_k) on the old
+    bank -> f(thetahat_k+1) on the new one), ``yhat`` and the ``out_*`` arrays. ``mode``:
+    0 min-max law, 1 gradient law, 2 no parameter law (theta held). ``tuning_row`` is
+    B^T P (vector) and unused for the scalar plant.
+    """
+    E, n = yhat.shape
+    G = grid.shape[0]
+    xs = np.empty(G + 1)
+    ys = np.empty(G + 1)
+    hull = np.empty(G + 1, dtype=np.int64)
+    g = np.empty(G)
+    free = np.empty(n)
+    new_state = np.empty(n)
+    for e in range(E):
+        row = values[e]
+        f_end, slope_end, _ = _interpolate_one(grid, row, theta[e])
+        for i in range(n):
+            acc = f_hat[e] * hold0[i] + (f_end - f_hat[e]) * hold1[i] - measured[e, i]
+            for j in range(n):
+                acc += transition[i, j] * yhat[e, j]
+            free[i] = acc
+        if vector:
+            z_free = 0.0
+            for i in range(n):
+                z_free += tuning_row[i] * free[i]
+        else:
+            z_free = free[0]
+        nu_pos = 0.0
+        nu_neg = 0.0
+        phi_pos = 0.0
+        phi_neg = 0.0
+        if mode == 0:
+            for i in range(G):
+                g[i] = row[i] - f_end
+            nu_pos, phi_pos = minmax_one(grid, g, theta[e], 1.0, slope_end, xs, ys, hull)
+            nu_neg, phi_neg = minmax_one(grid, g, theta[e], -1.0, slope_end, xs, ys, hull)
+        elif mode == 1:
+            phi_pos = slope_end
+            phi_neg = slope_end
+        z = _boundary_layer(z_free, weight * (nu_pos - offset), weight * (nu_neg - offset), eps)
+        sat = min(1.0, max(-1.0, z / eps))
+        if z >= 0.0:
+            applied = (nu_pos - offset) * sat
+            phi_sel = phi_pos
+        else:
+            applied = (nu_neg - offset) * sat
+            phi_sel = phi_neg
+        for i in range(n):
+            new_state[i] = free[i] - applied * hold0[i] + measured[e, i]
+            yhat[e, i] = new_state[i]
+        y_eps = z if vector else z - eps * sat
+        t_new = theta[e] - dt * gamma * gain * y_eps * phi_sel
+        t_new = min(hi, max(lo, t_new))
+        theta[e] = t_new
+    refresh(grid, values, theta, yhat, measured, tuning_row, vector, eps, f_hat, out_slope, out_curvature,
+            out_ytilde, out_y_eps, out_sat, out_sign, out_nu, out_phi)
+
+
+@njit(cache=True)
+def refresh(grid, values, theta, yhat, measured, tuning_row, vector, eps, out_value, out_slope, out_curvature,
+            out_ytilde, out_y_eps, out_sat, out_sign, out_nu, out_phi):
+    """Bank values at thetahat, ytilde, y_eps, sat, sign and the min-max (15) at that sign."""
+    E, n = yhat.shape
+    G = grid.shape[0]
+    xs = np.empty(G + 1)
+    ys = np.empty(G + 1)
+    hull = np.empty(G + 1, dtype=np.int64)
+    g = np.empty(G)
+    for e in range(E):
+        row = values[e]
+        value, slope, curvature = _interpolate_one(grid, row, theta[e])
+        out_value[e] = value
+        out_slope[e] = slope
+        out_curvature[e] = curvature
+        for i in range(n):
+            out_ytilde[e, i] = yhat[e, i] - measured[e, i]
+        if vector:
+            z = 0.0
+            for i in range(n):
+                z += tuning_row[i] * out_ytilde[e, i]
+            out_y_eps[e] = z
+        else:
+            z = out_ytilde[e, 0]
+        sat = min(1.0, max(-1.0, z / eps))
+        out_sat[e] = sat
+        if not vector:
+            out_y_eps[e] = z - eps * sat
+        sign = 1.0 if z >= 0.0 else -1.0
+        out_sign[e] = sign
+        for i in range(G):
+            g[i] = row[i] - value
+        nu, phi = minmax_one(grid, g, theta[e], sign, slope, xs, ys, hull)
+        out_nu[e] = nu
+        out_phi[e] = phi

@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from ._kernels import minmax_batch
+from ._kernels import minmax_batch, observer_step, refresh
 from .bank import ModelBank, _readonly
 from .config import EstimatorConfig, FirstOrderPlant
 
@@ -52,8 +52,8 @@ def hold_matrices(state_matrix: np.ndarray, input_vector: np.ndarray, dt: float)
 class AdaptiveEstimator:
     """Shared machinery of the bank-based estimators (see the module docstring).
 
-    Subclasses define the saturation feedback of ``yhat`` and the regressor of the
-    parameter law (:meth:`_feedback`). The min-max solution (15)/(25) is computed at
+    Subclasses pick the parameter law run by the compiled step (``_mode``: min-max,
+    gradient, or none with their own ``_next_theta``). The min-max solution (15)/(25) is computed at
     every step for every estimator so that all of them expose the same observation
     arrays.
 
@@ -66,6 +66,8 @@ class AdaptiveEstimator:
 
     #: short name used by :func:`make_estimator` and in reports
     name = "base"
+    #: parameter law run by the compiled step: 0 min-max, 1 gradient, 2 none (subclass sets theta)
+    _mode = 0
 
     def __init__(self, config: EstimatorConfig, n_systems: int = 1):
         if not isinstance(config, EstimatorConfig):
@@ -87,6 +89,7 @@ class AdaptiveEstimator:
             self._P = None
             self._BP = None
             self._gain = plant.nu  # f = nu*M in (14)
+        self._tuning_row = np.ascontiguousarray(self._BP if self._vector else np.zeros(self._n))
         self._eps = config.eps
         self._gamma = config.gamma
         self._lo = config.theta_min
@@ -236,33 +239,25 @@ class AdaptiveEstimator:
         if dt != self._hold_dt:
             self._set_hold(float(dt))
         phi_matrix, hold0, hold1, weight = self._hold
-        f_start = self._f_hat.copy()
+        measured = np.ascontiguousarray(measured.reshape(self._y.shape))
         self._before_advance()
         self.bank.advance(field)
-        f_end, slope_end, _ = self.bank.evaluate(self._theta, *self._f_scratch)
-        measured = measured.reshape(self._y.shape)
-        # Open-loop response of yhat over the step (f(thetahat) linear in time) ...
-        free = (self._yhat @ phi_matrix.T + f_start[:, None] * hold0[None, :]
-                + (f_end - f_start)[:, None] * hold1[None, :]) - measured
-        # ... plus the saturation feedback, taken implicitly (at the end of the step):
-        # z + kappa_sign(z) * sat(z/eps) = z_free with z = ytilde (scalar) or B^T P ytilde.
-        # An explicit (held) feedback chatters across the boundary layer as soon as
-        # gain*dt exceeds eps, which biases thetahat (the two signs use different phi).
-        z_free = free[:, 0] if not self._vector else free @ self._BP
-        gain_pos, gain_neg, phi_pos, phi_neg = self._feedback(f_end, slope_end)
-        offset = self._dead_zone_offset
-        z = _solve_boundary_layer(z_free, weight * (gain_pos - offset), weight * (gain_neg - offset), self._eps)
-        positive = z >= 0.0
-        sat = np.clip(z / self._eps, -1.0, 1.0)
-        applied = (np.where(positive, gain_pos, gain_neg) - offset) * sat
-        self._ytilde = free - applied[:, None] * hold0[None, :]
-        self._yhat = self._ytilde + measured
-        y_eps = z if self._vector else z - self._eps * sat
-        self._after_advance(measured, dt)
-        theta_rate = -self._gamma * self._gain * y_eps * np.where(positive, phi_pos, phi_neg)
-        self._theta = self._next_theta(theta_rate, dt)
+        # Open-loop response of yhat over the step (f(thetahat) linear in time), plus the
+        # saturation feedback taken implicitly, at the end of the step: with z = ytilde
+        # (scalar) or B^T P ytilde (vector), z + kappa_sign(z)*sat(z/eps) = z_free. A
+        # held (explicit) feedback chatters across the boundary layer as soon as
+        # gain*dt exceeds eps, and the chatter biases thetahat (the two signs use
+        # different phi). The parameter law then takes an Euler step with the new y_eps.
+        observer_step(self.bank.grid, self.bank._magnetization, self._theta, self._f_hat, self._yhat, measured,
+                      phi_matrix, hold0, hold1, weight, self._tuning_row, self._vector, self._eps,
+                      self._dead_zone_offset, self._gamma, self._gain, self._mode, float(dt), self._lo, self._hi,
+                      self._slope, self._curvature, self._ytilde, self._y_eps, self._sat, self._sign,
+                      self._nu, self._phi)
         self._y[...] = measured
-        self._refresh()
+        if self._mode == 2:
+            self._after_advance(measured, dt)
+            self._theta[:] = self._next_theta(None, dt)
+            self._refresh()
         return self.a_estimate
 
     # ------------------------------------------------------------------ internals
@@ -279,32 +274,9 @@ class AdaptiveEstimator:
 
     def _refresh(self):
         """Bank values at thetahat, errors and the min-max solution at the current time."""
-        self.bank.evaluate(self._theta, self._f_hat, self._slope, self._curvature)
-        np.subtract(self._yhat, self._y, out=self._ytilde)
-        eps = self._eps
-        if self._vector:
-            self._y_eps[:] = self._ytilde @ self._BP
-            np.clip(self._y_eps / eps, -1.0, 1.0, out=self._sat)
-            self._sign[:] = np.where(self._y_eps >= 0.0, 1.0, -1.0)
-        else:
-            error = self._ytilde[:, 0]
-            np.clip(error / eps, -1.0, 1.0, out=self._sat)
-            self._y_eps[:] = error - eps * self._sat
-            self._sign[:] = np.where(error >= 0.0, 1.0, -1.0)
-        minmax_batch(self.bank.grid, self.bank._magnetization, self._theta, self._f_hat, self._slope,
-                     self._sign, self._nu, self._phi)
-
-    def _minmax_both_signs(self, f_value, slope):
-        """(nu+, nu-, phi+, phi-) of (15) at the current bank and thetahat, for both signs."""
-        E = self.n_systems
-        nu_pos, nu_neg, phi_pos, phi_neg = (np.empty(E) for _ in range(4))
-        grid, values = self.bank.grid, self.bank._magnetization
-        minmax_batch(grid, values, self._theta, f_value, slope, np.ones(E), nu_pos, phi_pos)
-        minmax_batch(grid, values, self._theta, f_value, slope, -np.ones(E), nu_neg, phi_neg)
-        return nu_pos, nu_neg, phi_pos, phi_neg
-
-    def _next_theta(self, theta_rate, dt):
-        return np.clip(self._theta + dt * theta_rate, self._lo, self._hi)
+        refresh(self.bank.grid, self.bank._magnetization, self._theta, self._yhat, self._y, self._tuning_row,
+                self._vector, self._eps, self._f_hat, self._slope, self._curvature, self._ytilde, self._y_eps,
+                self._sat, self._sign, self._nu, self._phi)
 
     @property
     def _dead_zone_offset(self):
@@ -313,11 +285,6 @@ class AdaptiveEstimator:
         if self._vector:
             return 0.0
         return self.config.plant.lam * self._eps / self._gain
-
-    def _feedback(self, f_value, slope):  # pragma: no cover - abstract
-        """Gains (A/m) of ``-gain*sat`` in yhat for z >= 0 / z < 0, and the matching
-        regressors phi of the parameter law: ``(gain+, gain-, phi+, phi-)``, each (E,)."""
-        raise NotImplementedError
 
     def _reset_extra(self, rows):
         pass
@@ -393,9 +360,7 @@ class MinMaxEstimator(AdaptiveEstimator):
     """
 
     name = "minmax"
-
-    def _feedback(self, f_value, slope):
-        return self._minmax_both_signs(f_value, slope)
+    _mode = 0
 
 
 class GradientEstimator(AdaptiveEstimator):
@@ -408,10 +373,7 @@ class GradientEstimator(AdaptiveEstimator):
     """
 
     name = "gradient"
-
-    def _feedback(self, f_value, slope):
-        zero = np.zeros(self.n_systems)
-        return zero, zero, slope, slope
+    _mode = 1
 
 
 class MultipleModelEstimator(AdaptiveEstimator):
@@ -439,6 +401,7 @@ class MultipleModelEstimator(AdaptiveEstimator):
     """
 
     name = "multiple_model"
+    _mode = 2
 
     def __init__(self, config: EstimatorConfig, n_systems: int = 1, memory_s: float = 1.0):
         if not (np.isfinite(memory_s) and memory_s > 0):
@@ -460,10 +423,6 @@ class MultipleModelEstimator(AdaptiveEstimator):
     def _reset_extra(self, rows):
         self._node_output[rows] = self._y[rows][:, None, :]
         self._cost[rows] = 0.0
-
-    def _feedback(self, f_value, slope):
-        zero = np.zeros(self.n_systems)
-        return zero, zero, zero, zero
 
     def _before_advance(self):
         self._nodes_start[...] = self.bank._magnetization
@@ -493,21 +452,6 @@ class MultipleModelEstimator(AdaptiveEstimator):
         estimate = grid[best] + offset * spacing
         informative = np.ptp(cost, axis=1) > 0.0  # all nodes agree: no information yet
         return np.clip(np.where(informative, estimate, self._theta), self._lo, self._hi)
-
-
-def _solve_boundary_layer(z_free, kappa_pos, kappa_neg, eps):
-    """Solve ``z + kappa_sign(z)*sat(z/eps) = z_free`` for z, elementwise.
-
-    ``kappa_pos`` applies where z >= 0, ``kappa_neg`` where z < 0; both must exceed
-    ``-eps`` so that the left side is continuous and strictly increasing in z (a unique
-    root, found piece by piece).
-    """
-    outer_pos = z_free >= eps + kappa_pos
-    inner_pos = z_free >= 0.0
-    inner_neg = z_free > -eps - kappa_neg
-    return np.where(outer_pos, z_free - kappa_pos,
-                    np.where(inner_pos, z_free / (1.0 + kappa_pos / eps),
-                             np.where(inner_neg, z_free / (1.0 + kappa_neg / eps), z_free + kappa_neg)))
 
 
 ESTIMATORS = {cls.name: cls for cls in (MinMaxEstimator, GradientEstimator, MultipleModelEstimator)}
