@@ -119,7 +119,7 @@ def _rmse(model: Model, values, weights, mask) -> tuple[float, dict]:
 
 
 def calibrate(recording: Recording, structure: Structure, weights, fit_mask, max_field_step,
-              n_points=128, keep=3, progress=None) -> FitResult:
+              n_points=128, keep=2, progress=None) -> FitResult:
     """Stage 1: global Sobol search over the hysteresis parameters (transducer gain and bias
     solved linearly), then local least squares of everything from the ``keep`` best starts."""
     model = Model(recording, structure, base_parameters(recording, structure), max_field_step)
@@ -164,7 +164,7 @@ def fit_candidate(recording, base: FitResult, effect: str, weights, fit_mask, ma
         starts = _effect_starts(model, effect, base_values)
     best = None
     for start in starts:
-        result = local_fit(model, weights, fit_mask, start, max_nfev=60)
+        result = local_fit(model, weights, fit_mask, start, max_nfev=40)
         if best is None or result.sse < best.sse:
             best = result
     return best
@@ -180,9 +180,9 @@ def _effect_starts(model, effect, base_values):
         h = p["H0"].upper
         return [dict(start, H0=s * 0.05 * h) for s in (-1, 1)]
     if effect == "eddy_current":
-        return [dict(start, k_e=p["k_e"].upper * f) for f in (1e-3, 3e-2)]
+        return [dict(start, k_e=p["k_e"].upper * 1e-2)]
     if effect == "thermal_drift":
-        return [dict(start, heating=p["heating"].upper * 0.05, tau_th=p["tau_th"].value * f) for f in (0.3, 3.0)]
+        return [dict(start, heating=p["heating"].upper * 0.05, tau_th=p["tau_th"].value)]
     return [start]
 
 
@@ -216,9 +216,9 @@ def diagnose(recording, model: str = "lumped", anhysteretic: str = "ising", fit_
     held_mask = ~fit_mask
     weights = {ch: noise_level(recording.output(ch)) for ch in recording.channels}
     field_span = float(np.ptp(recording.field)) or 1.0
-    max_field_step = max(field_span / 1000.0, 1e-9)
+    max_field_step = max(field_span / 400.0, 1e-9)
     candidates_to_try = applicable_effects(recording, structure) if effects is None else list(effects)
-    bar = tqdm(total=3 + len(candidates_to_try) + 1, desc="diagnose", disable=not progress, leave=False)
+    bar = tqdm(total=2 + len(candidates_to_try) + 1, desc="diagnose", disable=not progress, leave=False)
 
     bar.set_postfix_str("calibrate")
     base = calibrate(recording, structure, weights, fit_mask, max_field_step, progress=bar)
@@ -334,7 +334,7 @@ def window_refits(base: FitResult, weights, windows: int = 4) -> dict:
     for lo, hi in zip(edges[:-1], edges[1:]):
         mask = np.zeros(n, dtype=bool)
         mask[lo:hi] = True
-        result = local_fit(window_model, weights, mask, base.values, max_nfev=15)
+        result = local_fit(window_model, weights, mask, base.values, max_nfev=8)
         values.append(result.values["a"])
         sigmas.append(result.uncertainties.get("a", np.nan))
         centers.append(float(model.recording.time[(lo + hi - 1) // 2]))
