@@ -335,3 +335,54 @@ def refresh(grid, values, theta, yhat, measured, tuning_row, vector, eps, out_va
         nu, phi = minmax_one(grid, g, theta[e], sign, slope, xs, ys, hull)
         out_nu[e] = nu
         out_phi[e] = phi
+
+
+@njit(cache=True)
+def estimator_step(field, measured, magnetization, bank_field, a, k, alpha, Ms, c, kind, max_field_step, grid,
+                   theta, f_hat, yhat, y, transition, hold0, hold1, weight, tuning_row, vector, eps, offset, gamma,
+                   gain, mode, dt, lo, hi, out_slope, out_curvature, out_ytilde, out_y_eps, out_sat, out_sign,
+                   out_nu, out_phi):
+    """One whole control step of every system: bank advance, then :func:`observer_step`.
+
+    ``field`` (E,) and ``measured`` (E, n) are the values at the end of the step. Returns
+    0, or (before touching any state) 1 if ``field`` or 2 if ``measured`` is not finite.
+    ``mode`` 0 (min-max) or 1 (gradient) only: the law of mode 2 runs in Python.
+    """
+    E, n = y.shape
+    for e in range(E):
+        if not np.isfinite(field[e]):
+            return 1
+        for i in range(n):
+            if not np.isfinite(measured[e, i]):
+                return 2
+    advance_bank(magnetization, bank_field, field, a, k, alpha, Ms, c, kind, max_field_step)
+    for e in range(E):
+        bank_field[e] = field[e]
+    observer_step(grid, magnetization, theta, f_hat, yhat, measured, transition, hold0, hold1, weight, tuning_row,
+                  vector, eps, offset, gamma, gain, mode, dt, lo, hi, out_slope, out_curvature, out_ytilde,
+                  out_y_eps, out_sat, out_sign, out_nu, out_phi)
+    for e in range(E):
+        for i in range(n):
+            y[e, i] = measured[e, i]
+    return 0
+
+
+@njit(cache=True)
+def pe_integrand_batch(grid, values, a_true, f_hat, curvature, gain, lo, hi, out):
+    """``beta*gain*(f(u, thetahat) - f(u, a_true))`` per system into ``out`` (E,).
+
+    ``a_true`` has length E or 1 (broadcast). Returns 0, or 1 (``out`` untouched) if an
+    ``a_true`` is not finite or lies outside [lo, hi].
+    """
+    E = values.shape[0]
+    count = a_true.shape[0]
+    for i in range(count):
+        t = a_true[i]
+        if not (np.isfinite(t) and lo <= t <= hi):
+            return 1
+    for e in range(E):
+        t = a_true[e] if count == E else a_true[0]
+        value, _, _ = _interpolate_one(grid, values[e], t)
+        beta = 1.0 if curvature[e] >= 0.0 else -1.0
+        out[e] = beta * gain * (f_hat[e] - value)
+    return 0

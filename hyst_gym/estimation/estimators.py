@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from ._kernels import minmax_batch, observer_step, refresh
+from ._kernels import estimator_step, minmax_batch, observer_step, pe_integrand_batch, refresh
 from .bank import ModelBank, _readonly
 from .config import EstimatorConfig, FirstOrderPlant
 
@@ -102,13 +102,14 @@ class AdaptiveEstimator:
         self._f_hat = np.zeros(E)
         self._slope = np.zeros(E)
         self._curvature = np.zeros(E)
-        self._f_scratch = (np.zeros(E), np.zeros(E), np.zeros(E))
         self._ytilde = np.zeros((E, self._n))
         self._y_eps = np.zeros(E)
         self._sat = np.zeros(E)
         self._sign = np.ones(E)
         self._nu = np.zeros(E)
         self._phi = np.zeros(E)
+        self._step_args = None
+        self._a_estimate_view = _readonly(self._theta)
         self.reset()
 
     # ------------------------------------------------------------------ public API
@@ -116,7 +117,7 @@ class AdaptiveEstimator:
     @property
     def a_estimate(self) -> np.ndarray:
         """thetahat, A/m, (E,), always inside Theta (read-only view of live state)."""
-        return _readonly(self._theta)
+        return self._a_estimate_view
 
     @property
     def tuning_error(self) -> np.ndarray:
@@ -168,9 +169,14 @@ class AdaptiveEstimator:
         gain; for the lumped plant (where the paper states no (22)) it is 1, so the
         integrand is in A/m.
         """
-        a_true = self._as_theta(a_true, "a_true")
-        value, _, _ = self.bank.evaluate(a_true, *self._f_scratch)
-        return self.curvature_sign * self._gain * (self._f_hat - value)
+        values = np.asarray(a_true, dtype=np.float64)
+        if values.ndim > 1 or values.size not in (1, self.n_systems):
+            self._as_theta(a_true, "a_true")  # raises naming the shape
+        out = np.empty(self.n_systems)
+        if pe_integrand_batch(self.bank.grid, self.bank._magnetization, values.reshape(-1), self._f_hat,
+                              self._curvature, self._gain, self._lo, self._hi, out):
+            self._as_theta(a_true, "a_true")  # raises naming the problem
+        return out
 
     def lyapunov_function(self, a_true) -> np.ndarray:
         """V, (E,): ``y_eps^2 + (thetahat - a)^2/gamma`` (scalar, paper's V for gamma = 1)
@@ -228,37 +234,53 @@ class AdaptiveEstimator:
         ``field`` (E,) A/m and ``measured_output`` ((E,) or (E, 2)) are the values at the
         end of the step, ``dt`` (s, > 0) its length.
         """
+        if dt != self._hold_dt:
+            if not (dt > 0.0 and np.isfinite(dt)):
+                raise ValueError(f"{type(self).__name__}.update: dt must be a finite number > 0 s, got {dt!r}")
+            self._set_hold(float(dt))
         field = np.asarray(field, dtype=np.float64)
         if field.shape != (self.n_systems,):
             field = self._finite_batch(field, self.n_systems, "field")
         measured = np.asarray(measured_output, dtype=np.float64)
         if measured.shape != self._y.shape:
-            measured = self._output_batch(measured)
-        if not (dt > 0.0 and np.isfinite(dt)):
-            raise ValueError(f"{type(self).__name__}.update: dt must be a finite number > 0 s, got {dt!r}")
-        if dt != self._hold_dt:
-            self._set_hold(float(dt))
-        phi_matrix, hold0, hold1, weight = self._hold
-        measured = np.ascontiguousarray(measured.reshape(self._y.shape))
-        self._before_advance()
-        self.bank.advance(field)
+            if self._n == 1 and measured.shape == (self.n_systems,):
+                measured = measured.reshape(self.n_systems, 1)
+            else:
+                measured = self._output_batch(measured)
+        if self._mode == 2:
+            self._update_python(field, measured, dt)
+            return self._a_estimate_view
         # Open-loop response of yhat over the step (f(thetahat) linear in time), plus the
         # saturation feedback taken implicitly, at the end of the step: with z = ytilde
         # (scalar) or B^T P ytilde (vector), z + kappa_sign(z)*sat(z/eps) = z_free. A
         # held (explicit) feedback chatters across the boundary layer as soon as
         # gain*dt exceeds eps, and the chatter biases thetahat (the two signs use
         # different phi). The parameter law then takes an Euler step with the new y_eps.
+        status = estimator_step(field, measured, *self._step_args)
+        if status:
+            name = "field" if status == 1 else "measured_output"
+            raise ValueError(f"{type(self).__name__}.update: {name} must be finite")
+        return self._a_estimate_view
+
+    def _update_python(self, field, measured, dt):
+        """The step of a subclass law that runs in Python (``_mode`` 2)."""
+        if not np.all(np.isfinite(field)):
+            raise ValueError(f"{type(self).__name__}: field must be finite")
+        if not np.all(np.isfinite(measured)):
+            raise ValueError(f"{type(self).__name__}.update: measured_output must be finite")
+        phi_matrix, hold0, hold1, weight = self._hold
+        measured = np.ascontiguousarray(measured)
+        self._before_advance()
+        self.bank.advance(field)
         observer_step(self.bank.grid, self.bank._magnetization, self._theta, self._f_hat, self._yhat, measured,
                       phi_matrix, hold0, hold1, weight, self._tuning_row, self._vector, self._eps,
                       self._dead_zone_offset, self._gamma, self._gain, self._mode, float(dt), self._lo, self._hi,
                       self._slope, self._curvature, self._ytilde, self._y_eps, self._sat, self._sign,
                       self._nu, self._phi)
         self._y[...] = measured
-        if self._mode == 2:
-            self._after_advance(measured, dt)
-            self._theta[:] = self._next_theta(None, dt)
-            self._refresh()
-        return self.a_estimate
+        self._after_advance(measured, dt)
+        self._theta[:] = self._next_theta(None, dt)
+        self._refresh()
 
     # ------------------------------------------------------------------ internals
 
@@ -271,6 +293,13 @@ class AdaptiveEstimator:
                              f"(B^T P G0 = {weight!r} <= 0); use a shorter control step")
         self._hold = (phi_matrix, hold0, hold1, weight)
         self._hold_dt = dt
+        bank = self.bank
+        # everything estimator_step needs after (field, measured): live arrays, updated in place
+        self._step_args = (bank._magnetization, bank._field, *bank._params, bank.grid, self._theta, self._f_hat,
+                           self._yhat, self._y, phi_matrix, hold0, hold1, weight, self._tuning_row, self._vector,
+                           self._eps, self._dead_zone_offset, self._gamma, self._gain, self._mode, float(dt),
+                           self._lo, self._hi, self._slope, self._curvature, self._ytilde, self._y_eps, self._sat,
+                           self._sign, self._nu, self._phi)
 
     def _refresh(self):
         """Bank values at thetahat, errors and the min-max solution at the current time."""
