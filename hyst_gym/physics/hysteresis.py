@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .anhysteretic import ISING, LANGEVIN, anhysteretic_kind, anhysteretic_point
+from .anhysteretic import ISING, LANGEVIN, anhysteretic_kind, anhysteretic_unit
 
 #: Default largest field substep in A/m. Chosen from the convergence study in
 #: ``tests/physics/test_hysteresis.py`` (major loop to +-1.2e5 A/m, then nested minor
@@ -198,27 +198,53 @@ class HysteresisBatch:
 # --------------------------------------------------------------------------- kernels
 
 
-@njit(cache=True, inline="always")
+# The kernels below are written so that the loop over the models of a bank compiles to
+# SIMD code: per-model constants are formed in the loop (no allocation per call), the
+# switch dhat and the guard are selects rather than branches, tanh is inlined
+# (anhysteretic.tanh_expm1), and error_model="numpy" drops Python's division-by-zero
+# check (a division that can only yield a discarded lane never raises).
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _slope(field, magnetization, delta, alpha, inv_a, Ms, ms_over_a, k_delta, alphahat, c, alpha_c, kind):
+    """dM/dH of (6) from precomputed per-model constants (1/a, Ms/a, k*delta, alpha/(1-c), alpha*c)."""
+    unit, unit_slope = anhysteretic_unit((field + alpha * magnetization) * inv_a, kind)
+    man_slope = ms_over_a * unit_slope
+    gap = Ms * unit - magnetization
+    denominator = k_delta - alphahat * gap
+    # dhat = 1 when M lags Man in the direction of travel. Guard: a denominator on the
+    # wrong side of delta (possible for alpha > 0) would mean negative susceptibility;
+    # the irreversible change is then 0.
+    irreversible_on = (gap * delta > 0.0) & (denominator * delta > 0.0)
+    irreversible = gap / (denominator if irreversible_on else delta)
+    irreversible = irreversible if irreversible_on else 0.0
+    return (irreversible + c * man_slope) / (1.0 - alpha_c * man_slope)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _midpoint(field, magnetization, step, delta, alpha, inv_a, Ms, ms_over_a, k_delta, alphahat, c, alpha_c,
+              kind):
+    slope_start = _slope(field, magnetization, delta, alpha, inv_a, Ms, ms_over_a, k_delta, alphahat, c,
+                         alpha_c, kind)
+    half = magnetization + (0.5 * step) * slope_start
+    slope_mid = _slope(field + 0.5 * step, half, delta, alpha, inv_a, Ms, ms_over_a, k_delta, alphahat, c,
+                       alpha_c, kind)
+    return magnetization + step * slope_mid
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def magnetization_slope(field, magnetization, delta, a, k, alpha, Ms, c, kind):
     """dM/dH of eq. (6) at one state, for a field moving in direction ``delta`` (+-1)."""
-    man, man_slope = anhysteretic_point(field + alpha * magnetization, a, Ms, kind)
-    gap = man - magnetization
-    irreversible = 0.0
-    if gap * delta > 0.0:  # dhat = 1: M lags Man in the direction of travel
-        denominator = k * delta - alpha / (1.0 - c) * gap
-        # Guard: a denominator on the wrong side of delta would mean negative
-        # susceptibility (possible for alpha > 0); the irreversible change is then 0.
-        if denominator * delta > 0.0:
-            irreversible = gap / denominator
-    return (irreversible + c * man_slope) / (1.0 - alpha * c * man_slope)
+    inv_a = 1.0 / a
+    return _slope(field, magnetization, delta, alpha, inv_a, Ms, Ms * inv_a, k * delta, alpha / (1.0 - c), c,
+                  alpha * c, kind)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _midpoint_substep(field, magnetization, step, delta, a, k, alpha, Ms, c, kind):
-    slope_start = magnetization_slope(field, magnetization, delta, a, k, alpha, Ms, c, kind)
-    half = magnetization + 0.5 * step * slope_start
-    slope_mid = magnetization_slope(field + 0.5 * step, half, delta, a, k, alpha, Ms, c, kind)
-    return magnetization + step * slope_mid
+    inv_a = 1.0 / a
+    return _midpoint(field, magnetization, step, delta, alpha, inv_a, Ms, Ms * inv_a, k * delta,
+                     alpha / (1.0 - c), c, alpha * c, kind)
 
 
 @njit(cache=True, inline="always")
@@ -228,32 +254,65 @@ def substep_count(field_change, max_field_step):
     return n if n > 0 else 1
 
 
-@njit(cache=True)
-def advance_shared(magnetization, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step):
-    """Move every model of a bank from ``field_from`` to ``field_to`` (A/m, shared).
+@njit(cache=True, error_model="numpy")
+def bank_constants(a, k, alpha, Ms, c):
+    """Per-model constants of the bank kernel, shape ``(5, B)``: 1/a, Ms/a, k, alpha/(1-c), alpha*c."""
+    out = np.empty((5, a.shape[0]))
+    for b in range(a.shape[0]):
+        out[0, b] = 1.0 / a[b]
+        out[1, b] = Ms[b] * out[0, b]  # as in _midpoint_substep, so both layouts round alike
+        out[2, b] = k[b]
+        out[3, b] = alpha[b] / (1.0 - c[b])
+        out[4, b] = alpha[b] * c[b]
+    return out
 
-    ``magnetization`` (A/m, shape ``(B,)``) is updated in place; parameter arrays have
-    shape ``(B,)``. Returns the number of substeps taken (0 if the field did not move).
-    """
+
+@njit(cache=True, error_model="numpy")
+def _advance_bank(magnetization, field_from, field_to, alpha, Ms, c, constants, kind, max_field_step):
     change = field_to - field_from
     if change == 0.0:
         return 0
     n = substep_count(change, max_field_step)
     step = change / n
     delta = 1.0 if change > 0.0 else -1.0
-    for s in range(n):
-        field = field_from + s * step
-        for b in range(magnetization.shape[0]):
-            magnetization[b] = _midpoint_substep(field, magnetization[b], step, delta,
-                                                 a[b], k[b], alpha[b], Ms[b], c[b], kind)
+    inv_a, ms_over_a, k, alphahat, alpha_c = constants[0], constants[1], constants[2], constants[3], constants[4]
+    # One loop per curve, with the curve a compile-time constant inside it, so the
+    # compiler does not evaluate both curves in every SIMD lane.
+    if kind == ISING:
+        for s in range(n):
+            field = field_from + s * step
+            for b in range(magnetization.shape[0]):  # the SIMD loop
+                magnetization[b] = _midpoint(field, magnetization[b], step, delta, alpha[b], inv_a[b], Ms[b],
+                                             ms_over_a[b], k[b] * delta, alphahat[b], c[b], alpha_c[b], ISING)
+    else:
+        for s in range(n):
+            field = field_from + s * step
+            for b in range(magnetization.shape[0]):
+                magnetization[b] = _midpoint(field, magnetization[b], step, delta, alpha[b], inv_a[b], Ms[b],
+                                             ms_over_a[b], k[b] * delta, alphahat[b], c[b], alpha_c[b], LANGEVIN)
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def advance_shared(magnetization, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step):
+    """Move every model of a bank from ``field_from`` to ``field_to`` (A/m, shared).
+
+    ``magnetization`` (A/m, shape ``(B,)``) is updated in place; parameter arrays have
+    shape ``(B,)``. Returns the number of substeps taken (0 if the field did not move).
+    Substeps are the outer loop and models the inner, vectorized loop.
+    """
+    if field_to == field_from:
+        return 0
+    return _advance_bank(magnetization, field_from, field_to, alpha, Ms, c, bank_constants(a, k, alpha, Ms, c),
+                         kind, max_field_step)
+
+
+@njit(cache=True, error_model="numpy")
 def advance_each(magnetization, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step):
     """Move model ``b`` from ``field_from[b]`` to ``field_to[b]`` (A/m), in place.
 
-    All arrays have shape ``(B,)``. Returns the total number of model-substeps.
+    All arrays have shape ``(B,)``. Returns the total number of model-substeps. Same
+    arithmetic as :func:`advance_shared`: a model gives the same numbers in both layouts.
     """
     total = 0
     for b in range(magnetization.shape[0]):
@@ -279,8 +338,9 @@ def simulate_shared(field, magnetization0, a, k, alpha, Ms, c, kind, max_field_s
     out = np.empty((n_samples, magnetization0.shape[0]))
     state = magnetization0.copy()
     out[0] = state
+    constants = bank_constants(a, k, alpha, Ms, c)
     for t in range(1, n_samples):
-        advance_shared(state, field[t - 1], field[t], a, k, alpha, Ms, c, kind, max_field_step)
+        _advance_bank(state, field[t - 1], field[t], alpha, Ms, c, constants, kind, max_field_step)
         out[t] = state
     return out
 

@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hyst_gym.physics import anhysteretic_magnetization
-from hyst_gym.physics.anhysteretic import (LANGEVIN_SERIES_SWITCH, LANGEVIN_SLOPE_SERIES_SWITCH, langevin,
-                                           langevin_slope)
+from hyst_gym.physics.anhysteretic import (LANGEVIN_SERIES, LANGEVIN_SERIES_SWITCH, LANGEVIN_SLOPE_SERIES_SWITCH,
+                                           langevin, langevin_slope, tanh_expm1)
 
 A, MS = 7012.0, 7.65e5
 
@@ -95,3 +95,28 @@ def test_bad_curve_and_parameters_are_rejected():
         anhysteretic_magnetization(0.0, A, MS, "brillouin")
     with pytest.raises(ValueError, match="a and Ms must be > 0"):
         anhysteretic_magnetization(0.0, -1.0, MS)
+
+
+def test_langevin_series_coefficients_are_the_bernoulli_ones():
+    # c_n = 2^(2n) B_2n / (2n)!, with B_2 = 1/6, B_4 = -1/30, B_6 = 1/42, B_8 = -1/30, B_10 = 5/66
+    bernoulli = [1 / 6, -1 / 30, 1 / 42, -1 / 30, 5 / 66]
+    for n, b in enumerate(bernoulli, start=1):
+        assert LANGEVIN_SERIES[n - 1] == pytest.approx(2 ** (2 * n) * b / math.factorial(2 * n), rel=1e-15)
+
+
+def test_inlined_tanh_matches_libm_everywhere():
+    x = np.concatenate([np.linspace(-25, 25, 400001), np.geomspace(1e-300, 30, 20001), [0.0, 20.0, 1e300]])
+    x = np.concatenate([x, -x])
+    ours = np.array([tanh_expm1(v) for v in x[::7]])
+    reference = np.tanh(x[::7])
+    tiny = np.finfo(float).tiny
+    assert np.max(np.abs(ours - reference) / np.maximum(np.abs(reference), tiny)) < 2e-15
+    assert np.all(np.abs(ours) <= 1.0)
+    assert tanh_expm1(0.0) == 0.0 and tanh_expm1(1e300) == 1.0 and tanh_expm1(-1e300) == -1.0
+
+
+@given(st.floats(-50.0, 50.0, allow_nan=False))
+@settings(max_examples=300, deadline=None)
+def test_inlined_tanh_is_accurate_and_odd(x):
+    assert tanh_expm1(x) == pytest.approx(math.tanh(x), rel=2e-15, abs=1e-300)
+    assert tanh_expm1(-x) == -tanh_expm1(x)

@@ -130,8 +130,9 @@ def test_magnetization_stays_below_saturation_and_never_decreases_against_the_fi
     field = np.concatenate([np.linspace(s, e, 7)[:-1] for s, e in zip(turning[:-1], turning[1:])] + [turning[-1:]])
     magnetization = simulate_magnetization(field, max_field_step=step, **p)
     assert np.all(np.isfinite(magnetization))
-    # |M| < Ms; equality only where tanh/coth round to exactly 1 in double precision.
-    assert np.all(np.abs(magnetization) <= p["Ms"])
+    # |M| < Ms; in deep saturation tanh rounds to exactly 1 and M may sit within
+    # rounding (a few ulp) of Ms.
+    assert np.all(np.abs(magnetization) <= p["Ms"] * (1 + 4 * np.finfo(float).eps))
     assert np.all(np.abs(magnetization[np.abs(field) < 2 * p["a"]]) < p["Ms"])
     # dM/dH >= 0 on every step of every branch (rising and falling).
     assert np.all(np.diff(magnetization) * np.sign(np.diff(field)) >= -1e-9 * p["Ms"])
@@ -226,7 +227,7 @@ def test_bad_field_and_step_are_rejected():
 
 # --------------------------------------------------------------------------- batch layouts
 
-def _random_bank(seed, size=9):
+def _random_bank(seed, size=19):  # 19 = two 8-wide SIMD blocks and a scalar remainder
     rng = np.random.default_rng(seed)
     return [HysteresisParams(a=rng.uniform(5e3, 9e3), k=rng.uniform(300, 5e3), alpha=rng.uniform(-0.1, 0.0),
                              Ms=rng.uniform(6e5, 9e5), c=rng.uniform(0.05, 0.5)) for _ in range(size)]
@@ -239,11 +240,12 @@ def test_shared_bank_matches_single_model_runs(curve):
     bank = simulate_batch(field, HysteresisBatch.stack(params))
     for i, p in enumerate(params):
         single = simulate_magnetization(field, a=p.a, k=p.k, alpha=p.alpha, Ms=p.Ms, c=p.c, anhysteretic=curve)
-        np.testing.assert_allclose(bank[:, i], single, rtol=0, atol=1e-9 * p.Ms)
+        # bit for bit: SIMD lanes and the scalar remainder use the same IEEE arithmetic
+        np.testing.assert_array_equal(bank[:, i], single)
 
 
 def test_advance_shared_and_advance_each_agree_with_single_runs():
-    params = _random_bank(2, size=6)
+    params = _random_bank(2)
     batch = HysteresisBatch.stack(params)
     rng = np.random.default_rng(3)
     fields = np.cumsum(rng.normal(0, 2e4, size=(120, batch.size)), axis=0)  # one random walk per model
@@ -257,10 +259,10 @@ def test_advance_shared_and_advance_each_agree_with_single_runs():
     assert substeps == expected_substeps
     for i, p in enumerate(params):
         single = simulate_magnetization(fields[:, i], a=p.a, k=p.k, alpha=p.alpha, Ms=p.Ms, c=p.c)
-        assert abs(state[i] - single[-1]) < 1e-9 * p.Ms
+        assert state[i] == single[-1]
     # shared layout under model 0's field, one step at a time, equals the trajectory function
     shared = np.zeros(batch.size)
     for t in range(1, fields.shape[0]):
         advance_shared(shared, fields[t - 1, 0], fields[t, 0], batch.a, batch.k, batch.alpha, batch.Ms,
                        batch.c, batch.kind, DEFAULT_MAX_FIELD_STEP)
-    np.testing.assert_allclose(shared, simulate_batch(fields[:, 0], batch)[-1], rtol=0, atol=1e-9 * 9e5)
+    np.testing.assert_array_equal(shared, simulate_batch(fields[:, 0], batch)[-1])
