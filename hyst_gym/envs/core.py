@@ -32,7 +32,7 @@ from ..estimation.config import LumpedPlant
 from ..estimation.estimators import make_estimator
 from ..physics import FirstOrderPlant, LumpedLinear, LumpedNonlinear
 from .config import EnvConfig
-from .kernels import fill_info, fill_observation, plant_step, score_step
+from .kernels import clip_actions, excitation_step, fill_info, fill_observation, finish_step, plant_step
 
 EXCITATION = "excitation"
 ESTIMATION = "estimation"
@@ -237,6 +237,48 @@ class BatchSimulator:
         self.history: list[list[dict]] = [[] for _ in range(n)]
         self.info_array = np.zeros((len(INFO_KEYS), n))
         self._theta = np.zeros(n)
+        self._obs_fresh = False
+        self._build_kernel_args()
+
+    def _build_kernel_args(self):
+        """Argument tuples of the compiled step kernels (live arrays, changed in place)."""
+        config = self.config
+        n = self.n
+        estimator = self.estimator
+        self._clipped = np.zeros((n, self.action_size))
+        self._command = np.zeros(n)
+        self._plant_state = (self.field, self.magnetization, self._magnetization_prev, self.state,
+                             self._state_next, self.temperature, self.ambient0, self.drift_rate, self.steps,
+                             self.a_true, self.measured, self.measured_temperature, self._noise, self._noise_pos,
+                             self._noise_sigma, self._noisy, config.temperature_sensor)
+        value, slope, second = self._pe
+        if estimator is not None:
+            value_hat, curvature = estimator._f_hat, estimator._curvature
+            tuning, gap, eps = estimator._y_eps, estimator._nu, self._eps
+        else:
+            value_hat, curvature = np.zeros(n), np.zeros(n)
+            tuning = gap = self.a_estimate
+            eps = 1.0
+        stroke_limit = -1.0 if config.stroke_limit is None else config.stroke_limit
+        self._finish_args = (
+            estimator is None, 0 if self.mode == ESTIMATION else 1, self.a_estimate, config.theta_min,
+            config.theta_max, config.theta_width,
+            self.a_true, self.temperature, self.state, self.model.output_index, self.model.output_offset,
+            self.steps, self.truncation_steps, config.temperature_limit, config.temperature_penalty_band,
+            stroke_limit, config.stroke_penalty_band, config.penalty_weight,
+            self._out["reward"], self._out["terminated"], self._out["truncated"], self._out["error"],
+            self._out["penalty"], self._out["stroke"],
+            self.info_array, self._rows, self.field, self.magnetization, config.dt, self.bank.grid,
+            self.bank._magnetization, value_hat, curvature, self._theta, value, slope, second, self._pe_gain,
+            self._obs, self.measured, self.scales, config.field_limit, config.episode_steps, tuning, eps, gap,
+            self._gap_norm, TUNING_DECADES, estimator is not None, self.measured_temperature,
+            config.thermal.reference_temperature, TEMPERATURE_SCALE, config.temperature_sensor,
+            self.obs_low, self.obs_high)
+        # Excitation with a compiled estimator law: the whole step is one kernel call.
+        self._fused = self.mode == EXCITATION and estimator._mode in (0, 1)
+        if self._fused:
+            self._fused_args = (*self._plant_state, *self._plant_args, *estimator._kernel_args(config.dt),
+                                *self._finish_args)
 
     # ------------------------------------------------------------------ seeding and reset
 
@@ -300,6 +342,7 @@ class BatchSimulator:
                 self.history[row] = []
         self._out["penalty"][rows] = 0.0
         self._fill_info(rows, self._out["penalty"])
+        self._obs_fresh = False
         if self.record:
             self._record(rows)
 
@@ -362,39 +405,51 @@ class BatchSimulator:
         return h * (config.schedule_offset + config.schedule_amplitude * bits)
 
     def step(self, actions, active=None):
-        """Advance every sub-env one control period with validated ``actions`` (n, k).
+        """Advance every sub-env one control period with normalized ``actions`` (n, k).
 
-        Returns ``(reward, terminated, truncated)`` arrays of shape (n,); observations
-        come from :meth:`observation`, per-step truth from :attr:`info`. ``active``
-        (bool mask, default all) marks the sub-envs whose step counts: the others are
-        stepped along with the batch but draw no noise (their streams stay as they
-        are), and the caller resets them right after.
+        Raises ``ValueError`` naming a non-finite action or one outside [-1, 1] (nothing
+        changes then). Returns ``(reward, terminated, truncated)`` arrays of shape (n,);
+        observations come from :meth:`observation`, per-step truth from :attr:`info`.
+        ``active`` (bool mask, default all) marks the sub-envs whose step counts: the
+        others are stepped along with the batch but draw no noise (their streams stay as
+        they are), and the caller resets them right after.
         """
+        reward, terminated, truncated = self.step_views(actions, active)
+        return reward.copy(), terminated.copy(), truncated.copy()
+
+    def step_views(self, actions, active=None):
+        """:meth:`step` returning live (n,) views, overwritten by the next step."""
         config = self.config
+        actions = np.asarray(actions, dtype=np.float64)
+        if actions.shape != self._clipped.shape:
+            actions = self.check_actions(actions)
         if active is None:
             active = self._all_active
         if self._noisy and self._noise_pos.max() >= NOISE_BLOCK:
             self._refill_noise(np.flatnonzero((self._noise_pos >= NOISE_BLOCK) & active))
-        command = self.field_command(actions)
-        plant_step(command, active, self.field, self.magnetization, self._magnetization_prev, self.state,
-                   self._state_next, self.temperature, self.ambient0, self.drift_rate, self.steps, self.a_true,
-                   self.measured, self.measured_temperature, self._noise, self._noise_pos, self._noise_sigma,
-                   self._noisy, config.temperature_sensor, *self._plant_args)
-        if self.estimator is not None:
-            measured = self.measured if config.is_mechanical else self.measured[:, 0]
-            self.a_estimate[:] = self.estimator.update(self.field, measured, config.dt)
+        if self._fused:
+            status = excitation_step(actions, ACTION_TOLERANCE, self._clipped, self._command, active,
+                                     *self._fused_args)
+            if status == 1:
+                self.check_actions(actions)  # raises, naming the value
+            if status == 2:
+                raise ValueError("step: the simulated field or output is not finite")
         else:
-            self.bank.advance(self.field)
-            estimate_column = 0 if self.mode == ESTIMATION else 1
-            self.a_estimate[:] = config.theta_min + 0.5 * (actions[:, estimate_column] + 1.0) * config.theta_width
-        out = self._out
-        score_step(self.a_estimate, self.a_true, self.temperature, self.state, self.model.output_index, self.steps,
-                   self.truncation_steps, *self._score_args, out["reward"], out["terminated"], out["truncated"],
-                   out["error"], out["penalty"], out["stroke"])
-        self._fill_info(None, out["penalty"])
+            if not clip_actions(actions, ACTION_TOLERANCE, self._clipped):
+                self.check_actions(actions)  # raises, naming the value
+            command = (self.schedule(self.steps + 1) if self.mode == ESTIMATION
+                       else self._clipped[:, 0] * config.field_limit)
+            plant_step(command, active, *self._plant_state, *self._plant_args)
+            if self.estimator is not None:
+                self.a_estimate[:] = self.estimator.update(self.field, self.measured, config.dt)
+            else:
+                self.bank.advance(self.field)
+            finish_step(self._clipped, *self._finish_args)
+        self._obs_fresh = True
         if self.record:
             self._record(self._rows)
-        return out["reward"].copy(), out["terminated"].copy(), out["truncated"].copy()
+        out = self._out
+        return out["reward"], out["terminated"], out["truncated"]
 
     def _refill_noise(self, rows):
         for row in rows:
@@ -426,6 +481,11 @@ class BatchSimulator:
 
     def observation(self) -> np.ndarray:
         """Normalized observations of all sub-envs, float32 of shape (n, obs_size) (a new array)."""
+        if not self._obs_fresh:
+            self._fill_observation()
+        return self._obs.copy()
+
+    def _fill_observation(self):
         config = self.config
         estimator = self.estimator
         if estimator is not None:
@@ -438,7 +498,7 @@ class BatchSimulator:
                          TUNING_DECADES, estimator is not None, self.measured_temperature,
                          config.thermal.reference_temperature, TEMPERATURE_SCALE, config.temperature_sensor,
                          self.obs_low, self.obs_high)
-        return self._obs.copy()
+        self._obs_fresh = True
 
     def _fill_info(self, rows, penalty):
         """Per-step truth of ``rows`` (all if None) into :attr:`info_array`; ``penalty`` is (n,)."""

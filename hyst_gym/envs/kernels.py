@@ -14,6 +14,7 @@ import math
 import numpy as np
 from numba import njit
 
+from ..estimation._kernels import estimator_step, interpolate_bank
 from ..physics.hysteresis import advance_each
 
 
@@ -172,4 +173,114 @@ def fill_info(info, rows, a_true, a_estimate, temperature, field, magnetization,
         info[11, i] = temperature_limit - temperature[i]
         info[12, i] = penalty[i]
 
-__all__ = ["fill_info", "fill_observation", "plant_step", "score_step"]
+
+
+@njit(cache=True)
+def clip_actions(actions, tolerance, clipped):
+    """Copy ``actions`` (n, k) into ``clipped``, clipped to [-1, 1]; returns False (nothing
+    written) if a value is not finite or exceeds 1 + ``tolerance`` in magnitude."""
+    n, k = actions.shape
+    for i in range(n):
+        for j in range(k):
+            v = actions[i, j]
+            if not (abs(v) <= 1.0 + tolerance):  # also catches NaN
+                return False
+    for i in range(n):
+        for j in range(k):
+            clipped[i, j] = min(max(actions[i, j], -1.0), 1.0)
+    return True
+
+
+@njit(cache=True)
+def finish_step(clipped, agent_estimate, estimate_column, a_estimate, theta_min, theta_max, theta_width,
+                a_true, temperature, state, output_index, output_offset, steps, truncation_steps,
+                temperature_limit, temperature_band, stroke_limit, stroke_band, penalty_weight,
+                reward, terminated, truncated, error, penalty, stroke,
+                info, rows, field, magnetization, dt, grid, bank_values, value_hat, curvature, truth_clipped,
+                value_true, slope_scratch, second_scratch, pe_gain,
+                obs, measured, scales, field_limit, episode_steps, tuning, eps, gap, gap_norm, decades, excitation,
+                measured_temperature, t_reference, temperature_scale, temperature_sensor, low, high):
+    """Everything after the estimate of one step: rewards and terminations
+    (:func:`score_step`), the per-step truth (:func:`fill_info`, with the PE integrand
+    from the bank at clip(a_true, Theta)) and the observations (:func:`fill_observation`).
+
+    ``agent_estimate``: the estimate is the agent's (action column ``estimate_column``
+    mapped onto Theta); ``value_hat``/``curvature`` are then filled from the bank at it.
+    Otherwise they are the estimator's f(u, thetahat) and d2f/dtheta2.
+    """
+    n = a_true.shape[0]
+    if agent_estimate:
+        for i in range(n):
+            a_estimate[i] = theta_min + 0.5 * (clipped[i, estimate_column] + 1.0) * theta_width
+        interpolate_bank(grid, bank_values, a_estimate, value_hat, slope_scratch, curvature)
+    score_step(a_estimate, a_true, temperature, state, output_index, steps, truncation_steps, theta_width,
+               temperature_limit, temperature_band, stroke_limit, stroke_band, penalty_weight,
+               reward, terminated, truncated, error, penalty, stroke)
+    for i in range(n):
+        truth_clipped[i] = min(max(a_true[i], theta_min), theta_max)
+    interpolate_bank(grid, bank_values, truth_clipped, value_true, slope_scratch, second_scratch)
+    fill_info(info, rows, a_true, a_estimate, temperature, field, magnetization, state, output_index,
+              output_offset, steps, dt, value_hat, value_true, curvature, pe_gain,
+              stroke_limit, temperature_limit, penalty, theta_width)
+    fill_observation(obs, measured, scales, field, field_limit, steps, episode_steps, a_estimate, theta_min,
+                     theta_width, tuning, eps, curvature, gap, gap_norm, decades, excitation,
+                     measured_temperature, t_reference, temperature_scale, temperature_sensor, low, high)
+
+
+@njit(cache=True)
+def excitation_step(actions, tolerance, clipped, command, active,
+                    field, magnetization, magnetization_prev, state, state_next, temperature, ambient0, drift_rate,
+                    steps, a_true, measured, measured_temperature, noise, noise_pos, noise_sigma, noisy,
+                    temperature_sensor, k, alpha, Ms, c, kind, max_field_step, field_limit, max_change,
+                    phi, gamma0, gamma1, quadratic, drive_gain, output_index, velocity_index,
+                    drifting, dt, decay, power_per_h2, thermal_resistance, tau, a_reference, t_reference,
+                    bank_values, bank_field, bank_a, bank_k, bank_alpha, bank_Ms, bank_c, bank_kind, bank_step, grid,
+                    theta, f_hat, yhat, y, transition, hold0, hold1, weight, tuning_row, vector, eps, offset,
+                    gamma, gain, law, est_dt, lo, hi, out_slope, out_curvature, out_ytilde, out_y_eps, out_sat,
+                    out_sign, out_nu, out_phi,
+                    agent_estimate, estimate_column, a_estimate, theta_min, theta_max, theta_width,
+                    f_a_true, f_temperature, f_state, f_output_index, output_offset, f_steps, truncation_steps,
+                    temperature_limit, temperature_band, stroke_limit, stroke_band, penalty_weight,
+                    reward, terminated, truncated, error, penalty, stroke,
+                    info, rows, f_field, f_magnetization, f_dt, f_grid, f_bank_values, value_hat, curvature,
+                    truth_clipped, value_true, slope_scratch, second_scratch, pe_gain,
+                    obs, f_measured, scales, f_field_limit, episode_steps, tuning, f_eps, gap, gap_norm, decades,
+                    excitation, measured_temperature_obs, t_reference_obs, temperature_scale,
+                    temperature_sensor_obs, low, high):
+    """One whole Excitation step in one call: actions -> :func:`plant_step` -> the
+    estimator's :func:`~hyst_gym.estimation._kernels.estimator_step` -> :func:`finish_step`.
+
+    Argument groups are, in order, those of the four kernels (the ``f_`` names of the
+    last group repeat arrays passed before). Returns 0, 1 (an action is not finite or
+    outside [-1, 1]; nothing changed) or 2 (the estimator got a non-finite input).
+    """
+    if not clip_actions(actions, tolerance, clipped):
+        return 1
+    for i in range(command.shape[0]):
+        command[i] = clipped[i, 0] * field_limit
+    plant_step(command, active, field, magnetization, magnetization_prev, state, state_next, temperature,
+               ambient0, drift_rate, steps, a_true, measured, measured_temperature, noise, noise_pos, noise_sigma,
+               noisy, temperature_sensor, k, alpha, Ms, c, kind, max_field_step, field_limit, max_change,
+               phi, gamma0, gamma1, quadratic, drive_gain, output_index, velocity_index,
+               drifting, dt, decay, power_per_h2, thermal_resistance, tau, a_reference, t_reference)
+    if estimator_step(field, measured, bank_values, bank_field, bank_a, bank_k, bank_alpha, bank_Ms, bank_c,
+                      bank_kind, bank_step, grid, theta, f_hat, yhat, y, transition, hold0, hold1, weight,
+                      tuning_row, vector, eps, offset, gamma, gain, law, est_dt, lo, hi, out_slope, out_curvature,
+                      out_ytilde, out_y_eps, out_sat, out_sign, out_nu, out_phi):
+        return 2
+    for i in range(theta.shape[0]):
+        a_estimate[i] = theta[i]
+    finish_step(clipped, agent_estimate, estimate_column, a_estimate, theta_min, theta_max, theta_width,
+                f_a_true, f_temperature, f_state, f_output_index, output_offset, f_steps, truncation_steps,
+                temperature_limit, temperature_band, stroke_limit, stroke_band, penalty_weight,
+                reward, terminated, truncated, error, penalty, stroke,
+                info, rows, f_field, f_magnetization, f_dt, f_grid, f_bank_values, value_hat, curvature,
+                truth_clipped, value_true, slope_scratch, second_scratch, pe_gain,
+                obs, f_measured, scales, f_field_limit, episode_steps, tuning, f_eps, gap, gap_norm, decades,
+                excitation, measured_temperature_obs, t_reference_obs, temperature_scale,
+                temperature_sensor_obs, low, high)
+    return 0
+
+
+__all__ = ["clip_actions", "excitation_step", "fill_info", "fill_observation", "finish_step", "plant_step",
+           "score_step"]

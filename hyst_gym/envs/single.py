@@ -66,13 +66,13 @@ class HystEnv(gym.Env):
         return self.sim.observation()[0], self.sim.info_of(0)
 
     def step(self, action):
-        actions = self.sim.check_actions(np.asarray(action, dtype=np.float64).reshape(1, -1)
-                                         if np.size(action) == self.sim.action_size else action)
-        reward, terminated, truncated = self.sim.step(actions)
+        sim = self.sim
+        reward, terminated, truncated = sim.step_views(np.asarray(action, dtype=np.float64).reshape(1, -1)
+                                                       if np.size(action) == sim.action_size else action)
         if self.render_mode == "human":
             self.render()
-        return (self.sim.observation()[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]),
-                self.sim.info_of(0))
+        return (sim.observation()[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]),
+                sim.info_of(0))
 
     def render(self):
         """``"rgb_array"``: an (H, W, 3) uint8 frame; ``"human"``: draws it in a window."""

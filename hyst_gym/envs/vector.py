@@ -98,7 +98,6 @@ class HystVectorEnv(VectorEnv):
             actions[resetting] = 0.0
         elif self.autoreset_mode == AutoresetMode.DISABLED and self._autoreset.any():
             raise RuntimeError("step: some sub-envs are done and autoreset_mode is DISABLED; reset them first")
-        actions = self.sim.check_actions(actions)
         rewards, terminations, truncations = self.sim.step(actions, active=~resetting if any_resetting else None)
         if self.autoreset_mode == AutoresetMode.NEXT_STEP:
             if any_resetting:

@@ -112,6 +112,11 @@ class AdaptiveEstimator:
         self._a_estimate_view = _readonly(self._theta)
         self.reset()
 
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        # a pickled view is restored as a copy: point it at the live array again
+        self._a_estimate_view = _readonly(self._theta)
+
     # ------------------------------------------------------------------ public API
 
     @property
@@ -283,6 +288,14 @@ class AdaptiveEstimator:
         self._refresh()
 
     # ------------------------------------------------------------------ internals
+
+    def _kernel_args(self, dt: float) -> tuple:
+        """Arguments of :func:`~._kernels.estimator_step` after ``(field, measured)`` for
+        steps of ``dt`` s: live arrays (changed in place) and constants. For the env's
+        fused step kernel; only for the compiled laws (``_mode`` 0 and 1)."""
+        if dt != self._hold_dt:
+            self._set_hold(float(dt))
+        return self._step_args
 
     def _set_hold(self, dt):
         phi_matrix, hold0, hold1 = hold_matrices(self._A, self._B, dt)
