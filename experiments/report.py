@@ -163,21 +163,65 @@ def improvements(table, summary):
     return out
 
 
+def sample_efficiency(raw, summary):
+    """Env steps at which each RL run's validation IQM first reaches the ramp's (paper: settle
+    time) or the best schedule's (drift: RMS error) held-out IQM; ``None`` if never."""
+    out = {}
+    for scenario, metric, column in (("paper", "settle_time_s", "settle_time_iqm_s"),
+                                     ("drift", "rms_error", "rms_error_iqm")):
+        if scenario not in summary:
+            continue
+        reference = "ramp" if scenario == "paper" else best_schedule(summary[scenario], metric)
+        if reference is None or reference not in summary[scenario]:
+            continue
+        target = summary[scenario][reference][metric]["iqm"]
+        for config_dir in sorted((raw / "train" / scenario).glob("*")):
+            reached = []
+            for curve_path in sorted(config_dir.glob("seed*/learning_curve.csv")):
+                with curve_path.open() as handle:
+                    rows = list(csv.DictReader(handle))
+                hit = [int(float(r["env_steps"])) for r in rows if float(r[column]) <= target]
+                reached.append(hit[0] if hit else None)
+            if reached:
+                out.setdefault(scenario, {})[config_dir.name] = {"reference": reference, "reference_iqm": target,
+                                                                  "steps_to_reach": reached}
+    return out
+
+
 def compute_used(raw):
+    """Env steps and wall time over every session of the runner (resumed jobs included).
+
+    Training jobs count their total trained steps once (a resumed run continues the same
+    model) plus the validation episodes of their learning curves; every other job counts
+    each time it ran.
+    """
     jobs = [json.loads(line) for line in (raw / "jobs.jsonl").read_text().splitlines() if line.strip()] \
         if (raw / "jobs.jsonl").exists() else []
-    latest = {}
+    by_kind = defaultdict(lambda: {"jobs": set(), "env_steps": 0, "cpu_wall_s": 0.0})
+    trained = {}
     for job in jobs:
-        latest[job["job"]] = job
-    by_kind = defaultdict(lambda: {"jobs": 0, "env_steps": 0, "cpu_wall_s": 0.0})
-    for job in latest.values():
         entry = by_kind[job["kind"]]
-        entry["jobs"] += 1
-        entry["env_steps"] += job["env_steps"]
+        entry["jobs"].add(job["job"])
         entry["cpu_wall_s"] += job["wall_s"]
+        if job["kind"] == "train":
+            trained[job["job"]] = max(trained.get(job["job"], 0), job["env_steps"])
+        else:
+            entry["env_steps"] += job["env_steps"]
+    validation_steps = 0
+    for config_path in (raw / "train").glob("*/*/seed*/config.json"):
+        config = json.loads(config_path.read_text())
+        curve = config_path.parent / "learning_curve.csv"
+        points = max(len(curve.read_text().splitlines()) - 1, 0) if curve.exists() else 0
+        validation_steps += points * config["eval_episodes"] * config["env_kwargs"].get("episode_steps", 0)
+    if "train" in by_kind:
+        by_kind["train"]["env_steps"] = sum(trained.values()) + validation_steps
+    by_kind = {k: {**v, "jobs": len(v["jobs"])} for k, v in by_kind.items()}
     machine = json.loads((raw / "machine.json").read_text()) if (raw / "machine.json").exists() else {}
-    run_wall = json.loads((raw / "run_wall.json").read_text()) if (raw / "run_wall.json").exists() else {}
-    return {"by_kind": dict(by_kind), "machine": machine, "run_wall": run_wall,
+    sessions = [json.loads(line) for line in (raw / "run_sessions.jsonl").read_text().splitlines() if line.strip()] \
+        if (raw / "run_sessions.jsonl").exists() else []
+    return {"by_kind": by_kind, "machine": machine, "sessions": sessions,
+            "run_wall": {"wall_s": sum(s["wall_s"] for s in sessions)} if sessions else {},
+            "training_validation_steps": validation_steps,
             "total_env_steps": int(sum(v["env_steps"] for v in by_kind.values()))}
 
 
@@ -368,12 +412,42 @@ def markdown_targets(tgt):
         lines.append("- Drift scenario target: no RL results in this run.")
     t = tgt.get("paper_vs_optimal_design")
     if t:
-        verdict = ("RL beats the optimal design (intervals separate)" if t["rl_beats_design"] else
-                   "RL does **not** beat the optimal design (intervals overlap or RL is worse)")
+        if t["rl_beats_design"]:
+            verdict = "RL beats the optimal design (the intervals do not overlap)"
+        elif t["rl_iqm"] < t["design_iqm"]:
+            verdict = "RL's IQM is lower, but the intervals overlap: RL does **not** clearly beat the optimal design"
+        else:
+            verdict = "RL does **not** beat the optimal design: it is slower"
         lines.append(f"- **Against the open-loop optimal design (paper):** `{t['best_rl']}` {t['rl_iqm']:.3g} s "
                      f"[{t['rl_ci95'][0]:.3g}, {t['rl_ci95'][1]:.3g}] vs `optimal_design` {t['design_iqm']:.3g} s "
                      f"[{t['design_ci95'][0]:.3g}, {t['design_ci95'][1]:.3g}]; P(RL better) = "
                      f"{t['probability_rl_better']:.2f}. {verdict}.")
+    return lines
+
+
+def markdown_pe(table):
+    lines = ["Mean fraction of the episode during which the windowed test (1 s window, "
+             "`hyst_gym.estimation.PEMonitor`) finds condition 3.1(a) (the integrand of (22) changes sign at fixed "
+             "curvature) or 3.1(b) (the curvature changes sign at fixed integrand sign), from the truth the "
+             "environment reports in `info`.", "", "| scenario | agent | 3.1(a) | 3.1(b) |", "|---|---|---|---|"]
+    for scenario in ("paper", "drift", "lumped"):
+        for agent in sorted(table.get(scenario, {})):
+            rows = [r for rr in table[scenario][agent].values() for r in rr]
+            pa = np.array([r["pe_a_fraction"] for r in rows])
+            pb = np.array([r["pe_b_fraction"] for r in rows])
+            if np.isfinite(pa).any():
+                lines.append(f"| {scenario} | {agent} | {np.nanmean(pa):.2f} | {np.nanmean(pb):.2f} |")
+    return lines
+
+
+def markdown_efficiency(efficiency):
+    lines = ["Environment steps at which a run's validation IQM (16 validation draws, disjoint from the held-out "
+             "set, first few used) first reached the reference agent's held-out IQM; `never` = not within training.",
+             "", "| scenario | RL config | reference (held-out IQM) | steps to reach, per seed |", "|---|---|---|---|"]
+    for scenario, configs in efficiency.items():
+        for config, entry in configs.items():
+            steps = ", ".join("never" if s is None else f"{s:,}" for s in entry["steps_to_reach"])
+            lines.append(f"| {scenario} | {config} | {entry['reference']} ({entry['reference_iqm']:.3g}) | {steps} |")
     return lines
 
 
@@ -387,8 +461,12 @@ def markdown_compute(compute):
         lines.append(f"| {kind} | {entry['jobs']} | {entry['env_steps']:,} | {entry['cpu_wall_s']:.0f} |")
     lines.append(f"| **total** | {sum(e['jobs'] for e in compute['by_kind'].values())} | "
                  f"{compute['total_env_steps']:,} | {sum(e['cpu_wall_s'] for e in compute['by_kind'].values()):.0f} |")
+    lines += ["", f"Training env steps include {compute['training_validation_steps']:,} steps of learning-curve "
+              "validation episodes."]
     if compute["run_wall"]:
-        lines += ["", f"Wall time of the whole run: {compute['run_wall'].get('wall_s', 0):.0f} s."]
+        lines += ["", f"Wall time of the run: {compute['run_wall']['wall_s']:.0f} s over {len(compute['sessions'])} "
+                  "session(s) of `python -m experiments.run` ("
+                  + ", ".join(f"{s['wall_s']:.0f} s, {s['jobs_run']} jobs" for s in compute["sessions"]) + ")."]
     return lines
 
 
@@ -402,8 +480,10 @@ def write_report(results=DEFAULT_RESULTS, readme=None, n_boot=2000):
     poi = improvements(table, summary)
     tgt = targets(table, summary)
     compute = compute_used(raw)
+    efficiency = sample_efficiency(raw, summary)
     (results / "summary.json").write_text(json.dumps(
         {**summary, "_meta": {"success_rate": success, "probability_of_improvement": poi, "targets": tgt,
+                              "sample_efficiency": efficiency,
                               "compute": compute, "settle_band": "0.1 % of a_true",
                               "censoring": "never-settled runs count as the episode length"}}, indent=2))
     figures = results / "figures"
@@ -430,9 +510,17 @@ def write_report(results=DEFAULT_RESULTS, readme=None, n_boot=2000):
              "stratified-bootstrap interval (strata = draws, runs = training seeds resampled within each draw); "
              "settle time = first time after which |a_estimate - a_true| stays within 0.1 % of a_true, "
              "never-settled runs censored at the episode length (see the survival curves); P(improve) = probability "
-             "that an RL run beats the best non-RL excitation baseline on the same draw.", "",
+             "that an RL run beats the best non-RL excitation baseline on the same draw. The estimator agents "
+             "(`minmax`, `gradient`, `multiple_model`) run on `Estimation-v0` under the environment's ramp (the "
+             "paper's input), so they compare estimators, not inputs; every other agent drives `Excitation-v0` "
+             "with the min-max estimator inside. RL configs: `<algo>_stack<k>` = the policy sees the last k "
+             "observations (frame stacking); `ppo`/`sac` in summary.json are the declared main configs "
+             "`ppo_stack8`/`sac_stack8`.", "",
              "## Targets", ""] + markdown_targets(tgt) + ["", "## Tables", ""] + \
-        markdown_tables(summary, success, poi, table) + ["## Compute", ""] + markdown_compute(compute) + \
+        markdown_tables(summary, success, poi, table) + ["## Persistent excitation", ""] + markdown_pe(table) + \
+        ["", "The inputs themselves (the learned H(t) beside the ramp) are in the `traces_*.png` figures.", "",
+         "## Sample efficiency", ""] + \
+        markdown_efficiency(efficiency) + ["", "## Compute", ""] + markdown_compute(compute) + \
         ["", "## Figures", ""] + [f"![{name}](results/figures/{name})" for name in made] + [""]
     (results.parent / "RESULTS.md").write_text("\n".join(lines))
     if readme is not None:
@@ -459,7 +547,21 @@ def readme_section(tgt, summary, compute):
              "```", "", "Results of the committed run (generated by `experiments/report.py`; full tables in "
              "[experiments/RESULTS.md](experiments/RESULTS.md)):", ""]
     lines += markdown_targets(tgt)
-    lines += ["", f"Compute: {compute['total_env_steps']:,} environment steps"
+    lines += ["", "| agent | paper: settle time IQM (s) | paper: RMS error (A/m) | drift: RMS error (A/m) | "
+              "lumped: settle time (s) |", "|---|---|---|---|---|"]
+    cell = lambda scenario, agent, metric: (f"{summary[scenario][agent][metric]['iqm']:.3g} "  # noqa: E731
+                                            f"[{summary[scenario][agent][metric]['ci95'][0]:.3g}, "
+                                            f"{summary[scenario][agent][metric]['ci95'][1]:.3g}]"
+                                            if agent in summary.get(scenario, {}) else "")
+    for agent in ("ramp", "ramp_tuned", "sine", "chirp", "prbs", "multisine", "random", "optimal_design",
+                  "optimal_design_prior", "greedy_info", "minmax", "gradient", "multiple_model", "ppo", "ppo_stack1",
+                  "sac"):
+        if any(agent in summary.get(s, {}) for s in ("paper", "drift", "lumped")):
+            lines.append(f"| {agent} | {cell('paper', agent, 'settle_time_s')} | {cell('paper', agent, 'rms_error')} | "
+                         f"{cell('drift', agent, 'rms_error')} | {cell('lumped', agent, 'settle_time_s')} |")
+    lines += ["", "IQM [95 % stratified-bootstrap CI] over the 50 held-out draws (x 5 training seeds for RL); "
+              "`minmax`, `gradient`, `multiple_model` are the estimators as agents under the ramp.",
+              "", f"Compute: {compute['total_env_steps']:,} environment steps"
               + (f", {compute['run_wall'].get('wall_s', 0) / 60:.0f} min wall" if compute["run_wall"] else "")
               + f" on {compute['machine'].get('cpu_count', '?')} CPU cores.", ""]
     for name, caption in (("survival_paper.png", "Settle-time survival, paper scenario"),

@@ -17,7 +17,8 @@ Raw layout under ``--results`` (default ``experiments/results``)::
     raw/train/<scenario>/<config>/seed<k>/    model.zip, config.json, learning_curve.csv
     raw/eval/<scenario>/<agent>/run<k>.csv    one row per held-out episode
     raw/eval/<scenario>/<agent>/run<k>.npz    traces of the first episodes (figures)
-    raw/jobs.jsonl                            wall time and env steps of every job
+    raw/jobs.jsonl                            wall time and env steps of every job run
+    raw/run_sessions.jsonl                    wall time of every invocation of this script
     raw/machine.json                          the machine
 """
 
@@ -45,6 +46,22 @@ def _output_path(job: Job, raw: pathlib.Path) -> pathlib.Path:
     if job.kind == "train":
         return raw / "train" / job.scenario / job.agent / f"seed{job.run}" / "model.zip"
     return raw / "eval" / job.scenario / job.agent / f"run{job.run}.csv"
+
+
+def is_done(job: Job, raw: pathlib.Path) -> bool:
+    """Whether a job's output exists and is current: a training run has reached its
+    timesteps (otherwise it is resumed), and a policy's evaluation is newer than its model."""
+    out = _output_path(job, raw)
+    if not out.exists():
+        return False
+    if job.kind == "train":
+        config = out.parent / "config.json"
+        return config.exists() and json.loads(config.read_text()).get("trained_steps", 0) >= job.option("timesteps")
+    if job.kind == "eval" and job.agent in RL_CONFIGS:
+        scenario = _scenario(job)
+        model = raw / "train" / scenario.source / job.agent / f"seed{job.run}" / "model.zip"
+        return model.exists() and out.stat().st_mtime >= model.stat().st_mtime
+    return True
 
 
 def execute(job: Job, results: str) -> dict:
@@ -213,7 +230,7 @@ def run(profile="full", results=DEFAULT_RESULTS, workers=1, backend="local", sce
          "profile": profile}, indent=2))
     all_records, start = [], time.time()
     for stage in (declared_jobs(profile, scenarios) if stages is None else stages):
-        todo = [j for j in stage if force or not _output_path(j, raw).exists()]
+        todo = [j for j in stage if force or not is_done(j, raw)]
         # training first (longest), then paper/drift before generalization, so that the pool
         # stays busy and the main results come first
         todo.sort(key=lambda j: (j.kind != "train", j.kind != "tune", j.scenario.startswith("drift_"), j.key))
@@ -223,8 +240,9 @@ def run(profile="full", results=DEFAULT_RESULTS, workers=1, backend="local", sce
                 handle.write(json.dumps(record) + "\n")
         all_records += records
     if all_records:
-        (raw / "run_wall.json").write_text(json.dumps({"wall_s": round(time.time() - start, 1),
-                                                       "jobs_run": len(all_records), "workers": workers}))
+        with (raw / "run_sessions.jsonl").open("a") as handle:
+            handle.write(json.dumps({"wall_s": round(time.time() - start, 1), "jobs_run": len(all_records),
+                                     "workers": workers, "backend": backend, "profile": profile}) + "\n")
     return all_records
 
 
