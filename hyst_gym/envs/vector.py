@@ -135,11 +135,13 @@ class HystVectorEnv(VectorEnv):
         return observations, rewards, terminations, truncations, infos
 
     def _infos(self) -> dict:
+        # one copy and one mask block, handed out row by row (rows do not share memory)
         values = self.sim.info_array.copy()
+        masks = np.ones(values.shape, dtype=bool)
         infos = {}
-        for key, row in zip(INFO_KEYS, values):
+        for key, row, mask in zip(INFO_KEYS, values, masks):
             infos[key] = row
-            infos["_" + key] = np.ones(self.num_envs, dtype=bool)
+            infos["_" + key] = mask
         return infos
 
     def render(self):

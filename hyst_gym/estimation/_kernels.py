@@ -272,15 +272,25 @@ def observer_step(grid, values, theta, f_hat, yhat, measured, transition, hold0,
         nu_neg = 0.0
         phi_pos = 0.0
         phi_neg = 0.0
+        # z has the sign of z_free (both kappas > -eps), and _boundary_layer reads only the
+        # kappa of that sign: solve the min-max for that sign alone, and for the other
+        # only if z came out with the other sign after all.
         if mode == 0:
             for i in range(G):
                 g[i] = row[i] - f_end
-            nu_pos, phi_pos = minmax_one(grid, g, theta[e], 1.0, slope_end, xs, ys, hull)
-            nu_neg, phi_neg = minmax_one(grid, g, theta[e], -1.0, slope_end, xs, ys, hull)
+            if z_free >= 0.0:
+                nu_pos, phi_pos = minmax_one(grid, g, theta[e], 1.0, slope_end, xs, ys, hull)
+            else:
+                nu_neg, phi_neg = minmax_one(grid, g, theta[e], -1.0, slope_end, xs, ys, hull)
         elif mode == 1:
             phi_pos = slope_end
             phi_neg = slope_end
         z = _boundary_layer(z_free, weight * (nu_pos - offset), weight * (nu_neg - offset), eps)
+        if mode == 0 and (z >= 0.0) != (z_free >= 0.0):
+            if z >= 0.0:
+                nu_pos, phi_pos = minmax_one(grid, g, theta[e], 1.0, slope_end, xs, ys, hull)
+            else:
+                nu_neg, phi_neg = minmax_one(grid, g, theta[e], -1.0, slope_end, xs, ys, hull)
         sat = min(1.0, max(-1.0, z / eps))
         if z >= 0.0:
             applied = (nu_pos - offset) * sat
