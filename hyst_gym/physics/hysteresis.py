@@ -24,6 +24,10 @@ Two batch layouts are provided, both over a leading batch axis of independent mo
 * :func:`advance_shared` -- many parameter sets under one shared field (the estimator's
   model bank);
 * :func:`advance_each` -- every model has its own field (vector environments).
+
+Both layouts use the same strict IEEE arithmetic, so a model gives the same numbers bit
+for bit in either layout and alone. The bank loop over models compiles to SIMD code
+(about 9 ns per model-substep for 64 models on one core; ``hyst-gym bench --only physics``).
 """
 
 from __future__ import annotations

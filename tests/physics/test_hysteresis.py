@@ -120,7 +120,7 @@ field_paths = st.lists(st.floats(-6e5, 6e5), min_size=1, max_size=8)
 
 
 @given(parameter_sets, field_paths, st.floats(5.0, 200.0))
-@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 def test_magnetization_stays_below_saturation_and_never_decreases_against_the_field(p, turning, step):
     peak = p["Ms"] / p["a"] / (3.0 if p["anhysteretic"] == "langevin" else 1.0)
     assume(p["alpha"] * p["c"] * peak < 0.9)  # validation rejects the singular ones (tested below)
