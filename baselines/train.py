@@ -4,7 +4,9 @@ Writes into ``--out``: ``model.zip`` and ``config.json`` beside it (every settin
 to rebuild the run), ``checkpoints/`` (every ``--checkpoint-every`` steps), ``tb/``
 (TensorBoard logs) and ``learning_curve.csv`` (the convergence metrics on a fixed
 validation set, disjoint from the benchmark's held-out draws, against env steps).
-``--resume`` continues from the newest checkpoint in ``--out`` up to ``--timesteps``.
+``--resume`` continues from the newest checkpoint in ``--out`` (else ``model.zip``) up to
+``--timesteps``; SAC also saves and reloads its replay buffer (``replay_buffer.pkl``, at the
+end of each session; checkpoints do not carry it).
 """
 
 from __future__ import annotations
@@ -162,6 +164,8 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=8, ch
         checkpoint = out / "model.zip"
     if checkpoint is not None:
         model = cls.load(checkpoint, env=env, device="cpu", tensorboard_log=str(out / "tb"))
+        if algo == "sac" and (out / "replay_buffer.pkl").exists():
+            model.load_replay_buffer(out / "replay_buffer.pkl")  # off-policy: keep the experience
         print(f"[train] resuming from {checkpoint} at {model.num_timesteps} steps")
     else:
         if resume:
@@ -177,6 +181,8 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=8, ch
         model.learn(remaining, callback=callback, reset_num_timesteps=checkpoint is None,
                     tb_log_name=f"{algo}_seed{seed}")
     model.save(out / "model.zip")
+    if algo == "sac":
+        model.save_replay_buffer(out / "replay_buffer.pkl")
     env.close()
     config["trained_steps"] = int(model.num_timesteps)
     config["wall_s_last_session"] = round(time.time() - start_wall, 2)

@@ -425,6 +425,54 @@ def markdown_targets(tgt):
     return lines
 
 
+def history_ablation(table, summary):
+    """Frame stacking (8 frames) against no history (1 frame), PPO, paper scenario."""
+    paper = table.get("paper", {})
+    if "ppo_stack8" not in paper or "ppo_stack1" not in paper:
+        return {}
+    out = {}
+    episode_s = _episode_s(paper["ppo_stack8"])
+    for metric in ("settle_time_s", "rms_error"):
+        x = score_matrix(paper["ppo_stack8"], metric, episode_s)
+        y = score_matrix(paper["ppo_stack1"], metric, episode_s)
+        out[metric] = {"stack8": summary["paper"]["ppo_stack8"][metric], "stack1": summary["paper"]["ppo_stack1"][metric],
+                       "probability_stack8_better": probability_of_improvement(x, y),
+                       "ci95": list(probability_of_improvement_ci(x, y, n_boot=500))}
+    return out
+
+
+def training_budget(raw):
+    """scenario -> RL config -> trained steps per seed (from each run's config.json)."""
+    out = defaultdict(dict)
+    for config_dir in sorted((raw / "train").glob("*/*")):
+        steps = [json.loads(p.read_text()).get("trained_steps") for p in sorted(config_dir.glob("seed*/config.json"))]
+        out[config_dir.parent.name][config_dir.name] = steps
+    return dict(out)
+
+
+def markdown_budget(budget, sessions):
+    parts = [f"`{config}` ({scenario}): {len(steps)} seeds x {min(steps):,}-{max(steps):,} steps"
+             for scenario, configs in budget.items() for config, steps in configs.items() if steps]
+    text = "Training budget: " + "; ".join(parts) + "." if parts else "No RL training in this run."
+    if len(sessions) > 1:
+        text += (f" The run was made in {len(sessions)} sessions of `experiments/run.py`; runs whose declared budget "
+                 "grew in a later session were continued from their saved model (`--resume`), and SAC runs "
+                 "continued without their replay buffer when an earlier session had not saved it.")
+    return [text]
+
+
+def markdown_ablation(ablation):
+    lines = []
+    for metric, entry in ablation.items():
+        lines.append(f"- History, {metric}: `ppo_stack8` {_fmt(entry['stack8'])} vs `ppo_stack1` {_fmt(entry['stack1'])}; "
+                     f"P(stack8 better) = {entry['probability_stack8_better']:.2f} "
+                     f"[{entry['ci95'][0]:.2f}, {entry['ci95'][1]:.2f}].")
+    lines.append("- A recurrent policy (sb3-contrib RecurrentPPO) was not run: sb3-contrib is not a dependency.")
+    lines.append("- Reward ablation (dense error against an information increment): not run in this benchmark; "
+                 "every RL config uses the environment's dense reward -|a_estimate - a_true|/width(Theta).")
+    return lines
+
+
 def markdown_pe(table):
     lines = ["Mean fraction of the episode during which the windowed test (1 s window, "
              "`hyst_gym.estimation.PEMonitor`) finds condition 3.1(a) (the integrand of (22) changes sign at fixed "
@@ -481,9 +529,12 @@ def write_report(results=DEFAULT_RESULTS, readme=None, n_boot=2000):
     tgt = targets(table, summary)
     compute = compute_used(raw)
     efficiency = sample_efficiency(raw, summary)
+    ablation = history_ablation(table, summary)
+    budget = training_budget(raw)
     (results / "summary.json").write_text(json.dumps(
         {**summary, "_meta": {"success_rate": success, "probability_of_improvement": poi, "targets": tgt,
-                              "sample_efficiency": efficiency,
+                              "sample_efficiency": efficiency, "history_ablation": ablation,
+                              "training_steps": budget,
                               "compute": compute, "settle_band": "0.1 % of a_true",
                               "censoring": "never-settled runs count as the episode length"}}, indent=2))
     figures = results / "figures"
@@ -516,7 +567,9 @@ def write_report(results=DEFAULT_RESULTS, readme=None, n_boot=2000):
              "with the min-max estimator inside. RL configs: `<algo>_stack<k>` = the policy sees the last k "
              "observations (frame stacking); `ppo`/`sac` in summary.json are the declared main configs "
              "`ppo_stack8`/`sac_stack8`.", "",
-             "## Targets", ""] + markdown_targets(tgt) + ["", "## Tables", ""] + \
+             "## Targets", ""] + markdown_targets(tgt) + [""] + markdown_budget(budget, compute["sessions"]) + \
+        ["", "## Ablations", ""] + markdown_ablation(ablation) + \
+        ["", "## Tables", ""] + \
         markdown_tables(summary, success, poi, table) + ["## Persistent excitation", ""] + markdown_pe(table) + \
         ["", "The inputs themselves (the learned H(t) beside the ramp) are in the `traces_*.png` figures.", "",
          "## Sample efficiency", ""] + \
@@ -526,14 +579,15 @@ def write_report(results=DEFAULT_RESULTS, readme=None, n_boot=2000):
     if readme is not None:
         docs = ROOT / "docs" / "figures" / "benchmark"
         docs.mkdir(parents=True, exist_ok=True)
-        for name in ("survival_paper.png", "traces_drift.png", "learning_paper.png"):
+        for name in ("survival_paper.png", "traces_paper.png", "traces_drift.png", "learning_paper.png"):
             if (figures / name).exists():
                 shutil.copyfile(figures / name, docs / name)
-        update_readme(pathlib.Path(readme), readme_section(tgt, summary, compute))
+        update_readme(pathlib.Path(readme), readme_section(tgt, summary, compute, ablation,
+                                                           markdown_budget(budget, compute["sessions"])))
     return summary
 
 
-def readme_section(tgt, summary, compute):
+def readme_section(tgt, summary, compute, ablation=None, budget_lines=()):
     lines = ["## Benchmark: can a learned excitation beat classical inputs?", "",
              "Agents (`baselines/`): the paper's ramp and tuned sine, chirp, multilevel PRBS, Schroeder multisine and "
              "random schedules; a CMA-ES optimal design maximizing Fisher information about a (nominal and "
@@ -547,6 +601,7 @@ def readme_section(tgt, summary, compute):
              "```", "", "Results of the committed run (generated by `experiments/report.py`; full tables in "
              "[experiments/RESULTS.md](experiments/RESULTS.md)):", ""]
     lines += markdown_targets(tgt)
+    lines += [""] + list(budget_lines)
     lines += ["", "| agent | paper: settle time IQM (s) | paper: RMS error (A/m) | drift: RMS error (A/m) | "
               "lumped: settle time (s) |", "|---|---|---|---|---|"]
     cell = lambda scenario, agent, metric: (f"{summary[scenario][agent][metric]['iqm']:.3g} "  # noqa: E731
@@ -560,11 +615,14 @@ def readme_section(tgt, summary, compute):
             lines.append(f"| {agent} | {cell('paper', agent, 'settle_time_s')} | {cell('paper', agent, 'rms_error')} | "
                          f"{cell('drift', agent, 'rms_error')} | {cell('lumped', agent, 'settle_time_s')} |")
     lines += ["", "IQM [95 % stratified-bootstrap CI] over the 50 held-out draws (x 5 training seeds for RL); "
-              "`minmax`, `gradient`, `multiple_model` are the estimators as agents under the ramp.",
+              "`minmax`, `gradient`, `multiple_model` are the estimators as agents under the ramp.", ""]
+    lines += markdown_ablation(ablation or {})
+    lines += ["",
               "", f"Compute: {compute['total_env_steps']:,} environment steps"
               + (f", {compute['run_wall'].get('wall_s', 0) / 60:.0f} min wall" if compute["run_wall"] else "")
               + f" on {compute['machine'].get('cpu_count', '?')} CPU cores.", ""]
     for name, caption in (("survival_paper.png", "Settle-time survival, paper scenario"),
+                          ("traces_paper.png", "Paper scenario: the learned H(t) beside the ramp and the designs"),
                           ("traces_drift.png", "Drift scenario: inputs and estimates"),
                           ("learning_paper.png", "Learning curves")):
         if (ROOT / "docs" / "figures" / "benchmark" / name).exists():
