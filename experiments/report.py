@@ -6,7 +6,9 @@ Reads ``raw/`` (see :mod:`experiments.run`) and writes
 
 * ``summary.json`` -- scenario -> agent -> metric -> ``{"iqm", "ci95", "n"}`` for the
   metrics ``settle_time_s`` (never-settled runs censored at the episode length) and
-  ``rms_error`` (A/m), plus ``_meta`` (targets, probabilities of improvement, compute);
+  ``rms_error`` (A/m), and nothing else;
+* ``details.json`` -- targets, probabilities of improvement, success rates, sample
+  efficiency, the history ablation, training budgets and compute;
 * ``RESULTS.md`` (beside ``results/``) -- the tables, target checks and compute;
 * PNG figures under ``figures/`` (and copies for the README in ``docs/figures/benchmark/``);
 * with ``--readme``, the README's ``benchmark`` section (between its markers only).
@@ -531,12 +533,12 @@ def write_report(results=DEFAULT_RESULTS, readme=None, n_boot=2000):
     efficiency = sample_efficiency(raw, summary)
     ablation = history_ablation(table, summary)
     budget = training_budget(raw)
-    (results / "summary.json").write_text(json.dumps(
-        {**summary, "_meta": {"success_rate": success, "probability_of_improvement": poi, "targets": tgt,
-                              "sample_efficiency": efficiency, "history_ablation": ablation,
-                              "training_steps": budget,
-                              "compute": compute, "settle_band": "0.1 % of a_true",
-                              "censoring": "never-settled runs count as the episode length"}}, indent=2))
+    (results / "summary.json").write_text(json.dumps(summary, indent=2))
+    (results / "details.json").write_text(json.dumps(
+        {"success_rate": success, "probability_of_improvement": poi, "targets": tgt,
+         "sample_efficiency": efficiency, "history_ablation": ablation, "training_steps": budget,
+         "compute": compute, "settle_band": "0.1 % of a_true",
+         "censoring": "never-settled runs count as the episode length"}, indent=2))
     figures = results / "figures"
     figures.mkdir(parents=True, exist_ok=True)
     made = []

@@ -46,15 +46,18 @@ def test_report_summary_matches_raw_and_checks_targets(tmp_path):
                       "<!-- section:other -->\nkeep\n<!-- /section:other -->\n")
     report.write_report(results, readme=None, n_boot=200)
     summary = json.loads((results / "summary.json").read_text())
-    assert set(summary) >= {"paper", "drift", "_meta"}
+    details = json.loads((results / "details.json").read_text())
+    assert set(summary) == {"paper", "drift"}
+    assert all(set(metrics) == {"settle_time_s", "rms_error"} for agents in summary.values()
+               for metrics in agents.values())
     entry = summary["paper"]["ramp"]["settle_time_s"]
     assert entry["iqm"] == pytest.approx(iqm(ramp[0][0])) and entry["n"] == 50
     assert entry["ci95"][0] <= entry["iqm"] <= entry["ci95"][1]
     rl = summary["paper"]["ppo"]["settle_time_s"]  # the declared main config is published as "ppo"
     assert rl["n"] == 250 and rl["iqm"] == pytest.approx(iqm(np.array([p[0] for p in ppo])))
-    target = summary["_meta"]["targets"]["paper_settle_half_ramp"]
+    target = details["targets"]["paper_settle_half_ramp"]
     assert target["met"] == (rl["iqm"] <= 0.5 * entry["iqm"])
-    assert "drift_rms_half_best_schedule" in summary["_meta"]["targets"]
+    assert "drift_rms_half_best_schedule" in details["targets"]
     text = (tmp_path / "RESULTS.md").read_text()
     assert f"{entry['iqm']:.3g}" in text
     assert ("**met**" if target["met"] else "**NOT met**") in text
