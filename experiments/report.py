@@ -215,15 +215,18 @@ def compute_used(raw):
         curve = config_path.parent / "learning_curve.csv"
         points = max(len(curve.read_text().splitlines()) - 1, 0) if curve.exists() else 0
         validation_steps += points * config["eval_episodes"] * config["env_kwargs"].get("episode_steps", 0)
+    discarded = json.loads((raw / "discarded_runs.json").read_text()) if (raw / "discarded_runs.json").exists() else []
+    discarded_steps = sum(r["trained_steps"] + r["validation_steps"] for r in discarded)
     if "train" in by_kind:
-        by_kind["train"]["env_steps"] = sum(trained.values()) + validation_steps
+        # superseded runs (retrained from scratch later) still cost their steps
+        by_kind["train"]["env_steps"] = sum(trained.values()) + validation_steps + discarded_steps
     by_kind = {k: {**v, "jobs": len(v["jobs"])} for k, v in by_kind.items()}
     machine = json.loads((raw / "machine.json").read_text()) if (raw / "machine.json").exists() else {}
     sessions = [json.loads(line) for line in (raw / "run_sessions.jsonl").read_text().splitlines() if line.strip()] \
         if (raw / "run_sessions.jsonl").exists() else []
     return {"by_kind": by_kind, "machine": machine, "sessions": sessions,
             "run_wall": {"wall_s": sum(s["wall_s"] for s in sessions)} if sessions else {},
-            "training_validation_steps": validation_steps,
+            "training_validation_steps": validation_steps, "discarded_training_steps": discarded_steps,
             "total_env_steps": int(sum(v["env_steps"] for v in by_kind.values()))}
 
 
@@ -458,8 +461,8 @@ def markdown_budget(budget, sessions):
     text = "Training budget: " + "; ".join(parts) + "." if parts else "No RL training in this run."
     if len(sessions) > 1:
         text += (f" The run was made in {len(sessions)} sessions of `experiments/run.py`; runs whose declared budget "
-                 "grew in a later session were continued from their saved model (`--resume`), and SAC runs "
-                 "continued without their replay buffer when an earlier session had not saved it.")
+                 "grew in a later session were continued from their saved model (`--resume`); superseded runs "
+                 "are listed in `raw/discarded_runs.json`.")
     return [text]
 
 
@@ -512,7 +515,8 @@ def markdown_compute(compute):
     lines.append(f"| **total** | {sum(e['jobs'] for e in compute['by_kind'].values())} | "
                  f"{compute['total_env_steps']:,} | {sum(e['cpu_wall_s'] for e in compute['by_kind'].values()):.0f} |")
     lines += ["", f"Training env steps include {compute['training_validation_steps']:,} steps of learning-curve "
-              "validation episodes."]
+              f"validation episodes and {compute['discarded_training_steps']:,} steps of superseded runs "
+              "(`raw/discarded_runs.json`)."]
     if compute["run_wall"]:
         lines += ["", f"Wall time of the run: {compute['run_wall']['wall_s']:.0f} s over {len(compute['sessions'])} "
                   "session(s) of `python -m experiments.run` ("
