@@ -48,9 +48,9 @@ RL_CONFIGS = {
 }
 
 PROFILES = {
-    "full": {"rl_seeds": 5, "timesteps": {"ppo": 50_000, "sac": 12_000}, "episodes": 50,
+    "full": {"rl_seeds": 5, "timesteps": {"ppo": 50_000, "sac": 20_000}, "episodes": 50,
              "tuning_episodes": 3, "design_evaluations": 300, "rl_scenarios": ("paper", "drift"),
-             "drift_timesteps": {"ppo": 50_000, "sac": 12_000}, "eval_every": {"ppo": 5_000, "sac": 2_000},
+             "drift_timesteps": {"ppo": 50_000, "sac": 20_000}, "eval_every": {"ppo": 5_000, "sac": 2_500},
              "eval_episodes": 4, "rl_configs": ("ppo_stack8", "ppo_stack1", "sac_stack8"),
              "drift_rl_configs": ("ppo_stack8",), "generalization": True},
     "smoke": {"rl_seeds": 1, "timesteps": {"ppo": 512, "sac": 300}, "episodes": 3, "tuning_episodes": 2,
