@@ -31,7 +31,7 @@ from ..estimation.config import FirstOrderPlant as EstimatorFirstOrder
 from ..estimation.config import LumpedPlant
 from ..estimation.estimators import make_estimator
 from ..physics import FirstOrderPlant, LumpedLinear, LumpedNonlinear
-from .config import EnvConfig
+from .config import MECHANICAL_ESTIMATOR_GAMMA, EnvConfig
 from .kernels import clip_actions, excitation_step, fill_info, fill_observation, finish_step, plant_step
 
 EXCITATION = "excitation"
@@ -76,10 +76,18 @@ def estimator_plant(config: EnvConfig):
 
 
 def estimator_config(config: EnvConfig) -> EstimatorConfig:
-    """The :class:`EstimatorConfig` of the built-in estimator and of the PE bank."""
+    """The :class:`EstimatorConfig` of the built-in estimator and of the PE bank.
+
+    ``config.estimator_gamma = None`` means the estimation layer's default gain for the
+    first-order plant, and :data:`~.config.MECHANICAL_ESTIMATOR_GAMMA` for the vector
+    estimator of the mechanical transducers (see there why not the paper's 5e10).
+    """
+    gamma = config.estimator_gamma
+    if gamma is None and config.is_mechanical:
+        gamma = MECHANICAL_ESTIMATOR_GAMMA
     return EstimatorConfig(theta_min=config.theta_min, theta_max=config.theta_max,
                            initial_estimate=config.initial_estimate, grid_size=config.estimator_grid_size,
-                           eps=config.estimator_eps, gamma=config.estimator_gamma, plant=estimator_plant(config),
+                           eps=config.estimator_eps, gamma=gamma, plant=estimator_plant(config),
                            hysteresis=config.hysteresis, max_field_step=config.max_field_step)
 
 
