@@ -8,6 +8,8 @@ Writes to DIR:
 * ``fig10_vector_estimate.png`` -- thetahat and a, vector case §4.2;
 * ``fig11_vector_tracking.png`` -- ytilde1 (m) and ytilde2 (m/s), vector case;
 * ``fig_gradient_failure.png`` -- gradient vs min-max adaptation at a high gain;
+* ``fig_gradient_drift.png`` -- continuous-time drift of the gradient law on a
+  non-monotone f (the mechanism of §1), min-max beside it;
 * ``summary.json`` -- final estimates, settle times, settings, the gradient case.
 
 The true plant is :mod:`hyst_gym.physics.transducers` (first-order plant and the
@@ -36,6 +38,18 @@ DURATION = 6.0  # s
 #: gradient-failure case: same ramp and plant, a high adaptation gain at a 1 ms step
 FAILURE_GAMMA = 1e5
 FAILURE_FINE_DT = 2.5e-4
+#: continuous-time drift case (§1): the visibly hysteretic parameter set (shared reference
+#: data ``ja_golden_params.json`` -> "hysteretic"), a wide Theta, a 10 ms saturating pulse,
+#: then the field held at DRIFT_HOLD_FIELD on the descending branch, where M(H; a) has an
+#: interior maximum in a (near a = 6000 A/m) between thetahat(0) and a.
+DRIFT_HYSTERESIS = HysteresisParams(a=A_TRUE, k=4000.0, alpha=-0.01, Ms=7.65e5, c=0.18)
+DRIFT_THETA = (3000.0, 12000.0)  # A/m
+DRIFT_GRID = 128
+DRIFT_GAMMA = 100.0
+DRIFT_THETA0 = 5500.0  # A/m, left of the maximum of f(., t) in a; a is right of it
+DRIFT_PULSE_S = 0.01  # s for each of the ramps 0 -> RAMP_PEAK -> DRIFT_HOLD_FIELD
+DRIFT_HOLD_FIELD = -1100.0  # A/m
+DRIFT_HOLD_S = 10.0
 
 
 def configure_parser(parser):
@@ -85,6 +99,49 @@ def run(name, config, field, outputs, dt, label):
         monitor.update(integrand[i:i + 1], estimator.curvature_sign, dt)
     pe = {key: value[0] for key, value in monitor.summary().items()}
     return {"estimate": estimates, "tracking": tracking, "integrand": integrand, "pe": pe}
+
+
+def drift_field(dt, hold_s=DRIFT_HOLD_S):
+    """Saturating pulse (0 -> RAMP_PEAK -> DRIFT_HOLD_FIELD, DRIFT_PULSE_S each), then held."""
+    steps = int(round(DRIFT_PULSE_S / dt))
+    return np.concatenate([np.linspace(0.0, RAMP_PEAK, steps + 1),
+                           np.linspace(RAMP_PEAK, DRIFT_HOLD_FIELD, steps + 1)[1:],
+                           np.full(int(round(hold_s / dt)), DRIFT_HOLD_FIELD)])
+
+
+def drift_case(dt, hold_s=DRIFT_HOLD_S):
+    """Gradient and min-max on the drift case at step ``dt`` (s).
+
+    Returns the sample times, both estimate records and f(theta) over the bank grid at the
+    end (the held field, where f(u, .) is not monotone in theta).
+    """
+    config = EstimatorConfig.paper_scalar(hysteresis=DRIFT_HYSTERESIS, theta_min=DRIFT_THETA[0],
+                                          theta_max=DRIFT_THETA[1], grid_size=DRIFT_GRID, gamma=DRIFT_GAMMA,
+                                          initial_estimate=DRIFT_THETA0)
+    field = drift_field(dt, hold_s)
+    params = dict(DRIFT_HYSTERESIS.__dict__)
+    outputs = plant_outputs(simulate_magnetization(field, **params), dt, vector=False)
+    estimates = {name: run(name, config, field, outputs, dt, f"drift {name}")["estimate"]
+                 for name in ("gradient", "minmax")}
+    bank = ModelBank(config, 1)
+    for value in field[1:]:
+        bank.advance(np.array([value]))
+    return {"time": np.arange(field.size) * dt, "estimates": estimates, "grid": config.theta_grid,
+            "landscape": bank.magnetization[0].copy(), "config": config}
+
+
+def spurious_point(grid, landscape, a_true, start):
+    """The theta on ``start``'s side of the maximum of f(u, .) at which f(theta) = f(a)
+    (the false equilibrium of the gradient law on a held input), or None if none."""
+    f_true = np.interp(a_true, grid, landscape)
+    peak = grid[np.argmax(landscape)]
+    side = np.linspace(grid[0], peak, 20001) if start < peak else np.linspace(peak, grid[-1], 20001)
+    values = np.interp(side, grid, landscape) - f_true
+    change = np.flatnonzero(np.sign(values[:-1]) != np.sign(values[1:]))
+    if change.size == 0:
+        return None
+    i = change[-1] if start < peak else change[0]
+    return float(side[i] - values[i] * (side[i + 1] - side[i]) / (values[i + 1] - values[i]))
 
 
 def fixed_estimate_integrand(config, field):
@@ -140,6 +197,9 @@ def main(args) -> int:
 
     integrand8, magnetization8, beta8 = fixed_estimate_integrand(scalar_config, field)
     _figures(out, time, field, integrand8, magnetization8, beta8, results, failure)
+    drift = drift_case(dt)
+    drift_fine = drift_case(dt / 4)
+    _drift_figure(out, drift)
 
     def case(result, samples=time):
         estimate = result["estimate"]
@@ -188,6 +248,7 @@ def main(args) -> int:
             "fine_dt_s": FAILURE_FINE_DT,
             "fine_minmax_max_abs_error_after_half_time": case(fine["minmax"], fine_time)["max_abs_error_after_half_time"],
             "fine_gradient_max_abs_error_after_half_time": case(fine["gradient"], fine_time)["max_abs_error_after_half_time"],
+            "continuous_time": _drift_summary(drift, drift_fine, dt),
         },
     }
     for key in ("scalar", "vector"):
@@ -196,8 +257,55 @@ def main(args) -> int:
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
     print(f"scalar: final a_estimate {summary['scalar']['final_a_estimate']:.2f} A/m, "
           f"settle {summary['scalar']['settle_time_s']} s; vector: final {summary['vector']['final_a_estimate']:.2f} "
-          f"A/m, settle {summary['vector']['settle_time_s']} s; wrote {out}/summary.json and 5 figures")
+          f"A/m, settle {summary['vector']['settle_time_s']} s; wrote {out}/summary.json and 6 figures")
     return 0
+
+
+def _drift_summary(drift, drift_fine, dt):
+    def errors(result):
+        return {name: {"initial_abs_error": float(abs(est[0] - A_TRUE)), "final_a_estimate": float(est[-1]),
+                       "final_abs_error": float(abs(est[-1] - A_TRUE)),
+                       "max_abs_error": float(np.max(np.abs(est - A_TRUE)))}
+                for name, est in result["estimates"].items()}
+    return {
+        "description": ("continuous-time drift of the gradient law (paper §1): 'hysteretic' parameters, a 10 ms "
+                        "pulse to 1e5 A/m and back to the held field, on the descending branch where M(H; a) has "
+                        "a maximum in a between thetahat(0) and a. Gradient adaptation walks AWAY from a to the "
+                        "false equilibrium f(thetahat) = f(a) on the far side of the maximum; min-max never "
+                        "increases |thetahat - a|. The held input carries no information that separates a from "
+                        "that point, so min-max does not converge to a either (it stops in between)."),
+        "hysteresis": dict(DRIFT_HYSTERESIS.__dict__), "theta_bounds": list(DRIFT_THETA),
+        "grid_size": DRIFT_GRID, "gamma": DRIFT_GAMMA, "initial_estimate": DRIFT_THETA0,
+        "pulse_s": DRIFT_PULSE_S, "hold_field": DRIFT_HOLD_FIELD, "hold_s": DRIFT_HOLD_S,
+        "eps": drift["config"].eps, "dt_s": dt, "fine_dt_s": dt / 4,
+        "f_maximum_at_theta": float(drift["grid"][np.argmax(drift["landscape"])]),
+        "false_equilibrium_theta": spurious_point(drift["grid"], drift["landscape"], A_TRUE, DRIFT_THETA0),
+        "at_dt": errors(drift), "at_fine_dt": errors(drift_fine),
+    }
+
+
+def _drift_figure(out, drift):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    axes[0].plot(drift["grid"], drift["landscape"] / 1e3, ".-", ms=3)
+    for value, color, style, label in ((A_TRUE, "k", "-", "true a"), (DRIFT_THETA0, "C2", "--", "thetahat(0)"),
+                                       (drift["estimates"]["gradient"][-1], "C1", ":", "gradient, end"),
+                                       (drift["estimates"]["minmax"][-1], "C0", "-.", "min-max, end")):
+        axes[0].axvline(value, color=color, ls=style, lw=1, label=label)
+    axes[0].set(xlabel="theta (A/m)", ylabel="f = M(H history; theta) (kA/m)",
+                title=f"(a) f over Theta at the held field {DRIFT_HOLD_FIELD:g} A/m")
+    axes[0].legend(fontsize=8)
+    for name, label in (("gradient", "gradient"), ("minmax", "min-max")):
+        axes[1].plot(drift["time"], drift["estimates"][name], label=label)
+    axes[1].axhline(A_TRUE, color="k", lw=0.8, label="true value")
+    axes[1].set(xlabel="Time (s)", ylabel="a (A/m)", title=f"(b) estimates, gamma = {DRIFT_GAMMA:g}")
+    axes[1].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "fig_gradient_drift.png", dpi=120)
+    plt.close(fig)
 
 
 def _figures(out, time, field, integrand8, magnetization8, beta8, results, failure):
