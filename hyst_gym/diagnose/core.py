@@ -25,7 +25,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from . import locate
-from .fit import FitResult, global_search, local_fit
+from .fit import FitResult, _solve_linear_outputs, global_search, local_fit
 from .model import (EFFECT_PARAMETERS, Model, Structure, applicable_effects, base_parameters,
                     extension_parameters, noise_level, slope_factor)
 from .recording import Recording, read_recording
@@ -125,7 +125,21 @@ def calibrate(recording: Recording, structure: Structure, weights, fit_mask, max
     model = Model(recording, structure, base_parameters(recording, structure), max_field_step)
     pair = _linear_pair(model)
     names = [n for n in HYSTERESIS_NAMES if model.parameters[n].free]
-    starts = global_search(model, weights, fit_mask, names, n_points=n_points, keep=keep, linear_outputs=pair)
+    if "magnetization" in model.channels and "displacement" in model.channels:
+        # Fit the hysteresis to the magnetization channel first, so that a displacement channel the
+        # base transducer cannot follow does not drag the hysteresis parameters; then fit jointly.
+        magnetic_only = Model(recording, structure, model.parameters, max_field_step)
+        magnetic_only.channels = ("magnetization",)
+        starts, magnetic_best = [], None
+        for start in global_search(magnetic_only, weights, fit_mask, names, n_points=n_points, keep=keep):
+            magnetic = local_fit(magnetic_only, weights, fit_mask, start, max_nfev=60)
+            if magnetic_best is None or magnetic.sse < magnetic_best.sse:
+                magnetic_best = magnetic
+            fitted = magnetic.values
+            m = model.magnetization([fitted])[:, 0]
+            starts.append(_solve_linear_outputs(model, fitted, m, weights, fit_mask, pair) if pair else fitted)
+    else:
+        starts = global_search(model, weights, fit_mask, names, n_points=n_points, keep=keep, linear_outputs=pair)
     best = None
     for start in starts:
         result = local_fit(model, weights, fit_mask, start, max_nfev=80)
@@ -133,6 +147,8 @@ def calibrate(recording: Recording, structure: Structure, weights, fit_mask, max
             best = result
         if progress is not None:
             progress.update(1)
+    if "magnetization" in model.channels and "displacement" in model.channels:
+        best.magnetic_values = {n: magnetic_best.values[n] for n in HYSTERESIS_NAMES}
     return best
 
 
@@ -160,6 +176,20 @@ def fit_candidate(recording, base: FitResult, effect: str, weights, fit_mask, ma
         names = [n for n in HYSTERESIS_NAMES if model.parameters[n].free]
         starts = [start] + global_search(model, weights, fit_mask, names, n_points=64, keep=2,
                                          linear_outputs=_linear_pair(model))
+    elif effect == "quadratic_magnetostriction" and "zetahat" in base_values:
+        # from the base fit's mechanics and from the initial (paper) ones: a base fit that the
+        # missing M^2 law has dragged far off is a poor place to start
+        paper = {n: p.value for n, p in base_parameters(recording, structure).items() if n in ("khat", "chat")}
+        starts = [_quadratic_start(model, base_values, weights, fit_mask),
+                  _quadratic_start(model, {**base_values, **paper}, weights, fit_mask)]
+        if base.magnetic_values:
+            starts.append(_quadratic_start(model, {**base_values, **paper, **base.magnetic_values}, weights,
+                                           fit_mask))
+        width = max(abs(v["zeta_q"]) for v in starts)
+        model = Model(recording, structure, {**params, "zeta_q": replace(
+            params["zeta_q"], lower=-100 * width - abs(params["zeta_q"].upper),
+            upper=100 * width + abs(params["zeta_q"].upper),
+            scale=max(width, params["zeta_q"].scale))}, max_field_step)
     else:
         starts = _effect_starts(model, effect, base_values)
     best = None
@@ -170,12 +200,33 @@ def fit_candidate(recording, base: FitResult, effect: str, weights, fit_mask, ma
     return best
 
 
+def _quadratic_start(model, base_values, weights, fit_mask):
+    """Linear least squares of the displacement on the responses to M, M^2 and 1 (the forcing
+    c1*M + c2*M^2 + c0 = zetahat*(M - M0) + zeta_q*(M - M0)^2), mapped to (zetahat, zeta_q, M0)."""
+    m = model.magnetization([base_values])[:, 0]
+    unit = dict(base_values, zetahat=1.0, zeta_q=0.0, M0=0.0)
+    responses = []
+    for signal in (m, m ** 2, np.ones_like(m)):
+        responses.append(model.displacement(unit, signal)[fit_mask])
+    design = np.column_stack(responses)
+    (c1, c2, c0), *_ = np.linalg.lstsq(design, model.recording.displacement[fit_mask], rcond=None)
+    center = float(np.median(m))
+    roots = np.roots([c2, c1, c0]) if c2 != 0 else np.array([-c0 / c1])
+    real = roots[np.abs(roots.imag) < 1e-9 * (np.abs(roots) + 1)].real
+    M0 = float(real[np.argmin(np.abs(real - center))]) if real.size else center
+    return dict(base_values, zeta_q=float(c2), zetahat=float(c1 + 2 * c2 * M0), M0=M0)
+
+
 def _effect_starts(model, effect, base_values):
     p = model.parameters
     start = {**base_values, **{n: p[n].value for n in EFFECT_PARAMETERS[effect]}}
     if effect == "rod_dynamics":
         lo, hi = p["f2"].lower, p["f2"].upper
         return [dict(start, f2=f, g2=g) for f in np.geomspace(lo * 1.5, hi * 0.9, 3) for g in (0.02,)]
+    if effect == "quadratic_magnetostriction":
+        gain = base_values.get("zetahat", base_values.get("nu", 1.0))
+        scale = gain / (2 * max(abs(base_values.get("M0", 0.0)), 0.3 * base_values.get("Ms", 1.0)))
+        return [dict(start, zeta_q=s * scale) for s in (1.0, -1.0)]
     if effect == "field_bias":
         h = p["H0"].upper
         return [dict(start, H0=s * 0.05 * h) for s in (-1, 1)]

@@ -31,6 +31,7 @@ class FitResult:
     n_residuals: int
     n_free: int
     evaluations: int
+    magnetic_values: dict | None = None  # hysteresis fitted to the magnetization channel alone
 
     @property
     def bic(self) -> float:

@@ -18,8 +18,9 @@ the base model when those parameters vanish:
                                 temperature rise, ``a(T) = a*T/T_amb`` (4) (slope a/T_amb),
                                 ``beta_Ms`` (1/K): ``Ms(T) = Ms*(1 - beta_Ms*(T - T_amb))``
 ``sensor_lag``                  ``tau_m``, ``tau_x`` (s): first-order sensor lags
-``quadratic_magnetostriction``  ``kappa`` (m/A): forcing ``zetahat*((M-M0) + kappa*(M-M0)^2)``
-                                (the M^2 law of (12) about a bias gives kappa = 1/(2*M0))
+``quadratic_magnetostriction``  ``zeta_q``: forcing ``zetahat*(M-M0) + zeta_q*(M-M0)^2``
+                                (the M^2 law of (12) about a bias M0 gives zeta_q = zetahat/(2*M0);
+                                a pure M^2 law has zetahat -> 0 with zeta_q finite)
 ``rod_dynamics``                ``f2`` (Hz), ``zeta2`` and ``g2``: a second longitudinal
                                 rod mode (10) in parallel with the lumped one; g2 is its static
                                 gain relative to the first
@@ -50,7 +51,7 @@ EFFECT_PARAMETERS = {
     "eddy_current": ("k_e",),
     "thermal_drift": ("heating", "tau_th", "beta_Ms"),
     "sensor_lag": ("tau_m", "tau_x"),
-    "quadratic_magnetostriction": ("kappa",),
+    "quadratic_magnetostriction": ("zeta_q",),
     "rod_dynamics": ("f2", "zeta2", "g2"),
     "anhysteretic_shape": (),
 }
@@ -193,8 +194,9 @@ class Model:
             gain = values["zeta2"]
         else:
             deviation = magnetization - M0
-            forcing = deviation + values.get("kappa", 0.0) * deviation ** 2
             gain = values["nu"] if transducer == "first_order" else values["zetahat"]
+            # quadratic_magnetostriction: a second gain on (M - M0)^2 (kappa = zeta_q/gain)
+            forcing = deviation + (values.get("zeta_q", 0.0) / gain) * deviation ** 2 if gain else deviation
         if transducer == "first_order":
             A, B, C = first_order_system(values["lam"], gain)
         elif transducer in ("lumped", "lumped_nonlinear"):
@@ -304,7 +306,9 @@ def extension_parameters(recording: Recording, structure: Structure, base_values
             out[name] = Parameter(name, dt if free else 0.0, 0.0, 0.05 * duration, "s", scale=dt, free=free)
     elif effect == "quadratic_magnetostriction":
         m_span = base_values.get("Ms", PAPER_MS)
-        out["kappa"] = Parameter("kappa", 0.0, -2.0 / m_span, 2.0 / m_span, "m/A", scale=0.1 / m_span)
+        gain = abs(base_values.get("zetahat", base_values.get("nu", 1.0))) or 1.0
+        out["zeta_q"] = Parameter("zeta_q", 0.0, -1e3 * gain / m_span, 1e3 * gain / m_span,
+                                  "gain units per A/m", scale=0.1 * gain / m_span)
     elif effect == "rod_dynamics":
         f1 = np.sqrt(base_values.get("khat", PAPER_KHAT)) / (2 * np.pi)
         nyquist = 0.5 / dt

@@ -21,7 +21,7 @@ EFFECT_WORDS = {
     "anhysteretic_shape": "the other anhysteretic curve (Ising (2) <-> Langevin (3))",
 }
 UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "tau_th": "s", "beta_Ms": "1/K", "tau_m": "s", "tau_x": "s",
-         "kappa": "m/A", "f2": "Hz", "zeta2": "", "g2": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "",
+         "zeta_q": "m/s^2 per (A/m)^2", "f2": "Hz", "zeta2": "", "g2": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "",
          "alpha": ""}
 
 
@@ -68,8 +68,9 @@ def explain(report) -> str:
         extra = (f" (steady-state temperature rise at the record's mean H^2: "
                  f"{values['heating'] * mean_sq * values['tau_th']:.3g} K; a(T) slope a/T_amb = "
                  f"{values['a'] / 293.15:.4g} A/m per K)")
-    if chosen.effect == "quadratic_magnetostriction" and values.get("kappa"):
-        extra = f" (an M^2 law about a bias magnetization of {1 / (2 * values['kappa']):.4g} A/m)"
+    if chosen.effect == "quadratic_magnetostriction" and values.get("zeta_q"):
+        extra = (f" (an M^2 law: zetahat/(2*zeta_q) = {values['zetahat'] / (2 * values['zeta_q']):.4g} A/m "
+                 f"is the bias magnetization it implies)") if "zetahat" in values else ""
     runner = sorted([c for c in report.candidates if c is not chosen], key=lambda c: -c.improvement)
     second = f" The runner-up, {runner[0].effect}, reached {100 * runner[0].improvement:.0f} %." if runner else ""
     return (f"The recording shows {EFFECT_WORDS[chosen.effect]}. Evidence: {loc}. Adding it to the base model "

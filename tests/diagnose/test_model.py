@@ -53,7 +53,7 @@ def test_extensions_reduce_to_base_when_switched_off(effect):
     structure = Structure(extension=effect)
     extra = extension_parameters(rec, structure, values)
     ext = Model(rec, structure, {**base.parameters, **extra}, 100.0)
-    off = dict(values, **{n: 0.0 for n in extra if n in ("H0", "k_e", "heating", "tau_m", "tau_x", "kappa", "g2",
+    off = dict(values, **{n: 0.0 for n in extra if n in ("H0", "k_e", "heating", "tau_m", "tau_x", "zeta_q", "g2",
                                                         "beta_Ms")})
     off.update({n: extra[n].value for n in extra if n not in off})
     a, b = base.predict(values), ext.predict(off)
