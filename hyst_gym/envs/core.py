@@ -379,11 +379,11 @@ class BatchSimulator:
         finite = np.isfinite(actions)
         if not finite.all():
             bad = actions[~finite][0]
-            raise ValueError(f"action contains {bad!r}: normalized actions must be finite numbers in [-1, 1]")
+            raise ValueError(f"action contains {float(bad)!r}: normalized actions must be finite numbers in [-1, 1]")
         outside = np.abs(actions) > 1.0 + ACTION_TOLERANCE
         if outside.any():
             bad = actions[outside][0]
-            raise ValueError(f"action value {bad!r} is outside [-1, 1] (normalized; the field command is "
+            raise ValueError(f"action value {float(bad)!r} is outside [-1, 1] (normalized; the field command is "
                              f"action*field_limit, the estimate maps [-1, 1] onto Theta)")
         return np.clip(actions, -1.0, 1.0)
 
