@@ -473,9 +473,35 @@ def markdown_ablation(ablation):
                      f"P(stack8 better) = {entry['probability_stack8_better']:.2f} "
                      f"[{entry['ci95'][0]:.2f}, {entry['ci95'][1]:.2f}].")
     lines.append("- A recurrent policy (sb3-contrib RecurrentPPO) was not run: sb3-contrib is not a dependency.")
-    lines.append("- Reward ablation (dense error against an information increment): not run in this benchmark; "
-                 "every RL config uses the environment's dense reward -|a_estimate - a_true|/width(Theta).")
+    lines += markdown_reward_ablation(DEFAULT_RESULTS / "ablation_reward.json")
     return lines
+
+
+def markdown_reward_ablation(path):
+    """Lines for the reward ablation, from ``python -m experiments.ablation_reward``'s summary when it exists."""
+    path = pathlib.Path(path)
+    if not path.exists():
+        return ["- Reward ablation (dense error against an information increment): not run in this benchmark; "
+                "every RL config uses the environment's dense reward -|a_estimate - a_true|/width(Theta)."]
+    data = json.loads(path.read_text())
+    arms, poi = data["arms"], data["probability_of_improvement"]
+    lines = [f"- Reward ablation (`python -m experiments.ablation_reward`, `{data['config']}` in `{data['scenario']}`, "
+             f"{data.get('training_seeds', '?')} seeds x {data.get('timesteps_per_run', 0):,} steps per arm, both "
+             "arms retrained by the same code): dense error reward -|a_estimate - a_true|/width(Theta) (uses the "
+             "truth) against the information increment (df/da at a_estimate)^2, normalized "
+             "(`baselines/rewards.py`, no truth):", "",
+             "| reward | settle time IQM (s) | RMS error IQM (A/m) | success | P(information better) |",
+             "|---|---|---|---|---|"]
+    for arm in ("dense", "information"):
+        if "settle_time_s" not in arms.get(arm, {}):
+            continue
+        entry = arms[arm]
+        better = (", ".join(f"{m.split('_')[0]} {v['information_over_dense']:.2f} [{v['ci95'][0]:.2f}, "
+                            f"{v['ci95'][1]:.2f}]" for m, v in poi.items() if m in ("settle_time_s", "rms_error"))
+                  if arm == "information" else "")
+        lines.append(f"| {arm} | {_fmt(entry['settle_time_s'])} | {_fmt(entry['rms_error'])} | "
+                     f"{entry['success_rate']:.0%} | {better} |")
+    return lines + [""]
 
 
 def markdown_pe(table):
