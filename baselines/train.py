@@ -80,7 +80,8 @@ class _Callbacks:
     """Progress bar, learning curve and checkpoints as one SB3 callback (built lazily)."""
 
     @staticmethod
-    def build(total, out, spec, n_stack, eval_every, eval_episodes, checkpoint_every, n_envs, progress, start):
+    def build(total, out, spec, n_stack, eval_every, eval_episodes, checkpoint_every, n_envs, progress, start,
+              wall_start):
         from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
         from tqdm.auto import tqdm
 
@@ -106,7 +107,7 @@ class _Callbacks:
             def _on_step(self):
                 if self.next_at is not None and self.model.num_timesteps >= self.next_at:
                     self.next_at += eval_every
-                    record_learning_point(self.model, out, spec, n_stack, eval_episodes)
+                    record_learning_point(self.model, out, spec, n_stack, eval_episodes, wall_start)
                 return True
 
         callbacks = [Progress(), LearningCurve()]
@@ -125,7 +126,8 @@ def record_learning_point(model, out, spec, n_stack, episodes, wall_start=None):
 
     records, _ = run_episodes(PolicyAgent(model, n_stack), spec, VALIDATION_SEEDS[:episodes])
     settle, _ = censor([r["settle_time_s"] for r in records], max(r["episode_time_s"] for r in records))
-    row = {"env_steps": int(model.num_timesteps), "wall_s": round(time.time() - _WALL_START.get(out, time.time()), 2),
+    wall_s = None if wall_start is None else round(time.time() - wall_start, 2)
+    row = {"env_steps": int(model.num_timesteps), "wall_s": wall_s,
            "settle_time_iqm_s": iqm(settle), "rms_error_iqm": iqm([r["rms_error"] for r in records]),
            "success_rate": float(np.mean([np.isfinite(r["settle_time_s"]) for r in records]))}
     path = out / "learning_curve.csv"
@@ -138,8 +140,6 @@ def record_learning_point(model, out, spec, n_stack, episodes, wall_start=None):
     return row
 
 
-_WALL_START: dict = {}
-
 
 def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=8, checkpoint_every=10_000,
           eval_every=0, eval_episodes=8, hyperparams=None, resume=False, progress=True, scenario=None):
@@ -151,7 +151,7 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=8, ch
     torch.set_num_threads(1)
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    _WALL_START[out] = time.time()
+    wall_start = time.time()  # learning-curve rows report wall time since this call
     params = {**DEFAULT_HYPERPARAMS[algo], **(hyperparams or {})}
     config = {"algo": algo, "env_id": spec.env_id, "env_kwargs": spec.env_kwargs, "dt": spec.dt,
               "scenario": scenario, "timesteps": int(timesteps), "seed": int(seed), "n_envs": int(n_envs),
@@ -177,7 +177,7 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=8, ch
     start_wall = time.time()
     if remaining > 0:
         callback = _Callbacks.build(int(timesteps), out, spec, n_stack, eval_every, eval_episodes,
-                                    checkpoint_every, n_envs, progress, int(model.num_timesteps))
+                                    checkpoint_every, n_envs, progress, int(model.num_timesteps), wall_start)
         model.learn(remaining, callback=callback, reset_num_timesteps=checkpoint is None,
                     tb_log_name=f"{algo}_seed{seed}")
     model.save(out / "model.zip")

@@ -11,7 +11,6 @@ from hyst_gym import simulate_magnetization
 REFERENCE = pathlib.Path(__file__).resolve().parents[2].parent / "shared" / "data" / "reference"
 
 
-@pytest.mark.skipif(not (REFERENCE / "ja_golden.npz").exists(), reason="shared/ reference data not present")
 @pytest.mark.parametrize("name", ["paper", "hysteretic", "soft"])
 def test_matches_independent_reference(name):
     data = np.load(REFERENCE / "ja_golden.npz")

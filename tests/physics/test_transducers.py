@@ -73,8 +73,10 @@ def test_paper_coefficients_and_the_bias():
     assert rod.lumped_damping / rod.lumped_mass == pytest.approx(7.8899e3, rel=1.5e-3)
     # The bias that reproduces zetahat: 2*zeta*M0/m = 1.3724e-2  ->  M0 = 3.839e5 A/m
     m0 = rod.bias_magnetization()
-    assert m0 == DEFAULT_BIAS_MAGNETIZATION
-    assert 2 * rod.force_coefficient * m0 / rod.lumped_mass == pytest.approx(1.3724e-2, rel=1e-12)
+    # independent hand computation from the raw rod data of GUIDE §2
+    mass = rod.ML + rod.rho * rod.A * rod.L / 3
+    force_per_m2 = rod.Y * rod.A * 1.5 * rod.saturation_magnetostriction / rod.Ms ** 2
+    assert m0 == pytest.approx(1.3724e-2 * mass / (2 * force_per_m2), rel=1e-12)
     assert m0 == pytest.approx(3.839e5, rel=1e-3)
     assert rod.gamma == pytest.approx(1.5e-3 / 7.65e5 ** 2, rel=1e-12)
     assert LumpedLinear.from_rod(rod).coupling == pytest.approx(1.3724e-2, rel=1e-12)
