@@ -1,6 +1,6 @@
 """Reward ablation (issue 5, "Ablations"): dense error reward against an information increment.
 
-    python -m experiments.ablation_reward [--timesteps 50000] [--seeds 5] [--workers 2]
+    python -m experiments.ablation_reward [--timesteps 50000] [--seeds 10] [--workers 2]
                                           [--arms dense,information] [--force]
 
 Both arms are the committed ``ppo_stack8`` configuration in the ``paper`` scenario (PPO,
@@ -45,7 +45,7 @@ SUMMARY = RESULTS / "ablation_reward.json"
 ARMS = ("dense", "information")
 SCENARIO = "paper"
 CONFIG = "ppo_stack8"
-METRICS = ("settle_time_s", "integrated_error", "rms_error")
+METRICS = ("settle_time_s", "integrated_error", "rms_error", "final_error")
 EVAL_EVERY, EVAL_EPISODES = 5_000, 4  # as the committed full profile's learning curves
 
 
@@ -148,7 +148,7 @@ def main(argv=None) -> int:
 
     parser = argparse.ArgumentParser(prog="python -m experiments.ablation_reward", description=__doc__.splitlines()[0])
     parser.add_argument("--timesteps", type=int, default=50_000, help="env steps per run (committed ppo_stack8: 50000)")
-    parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--seeds", type=int, default=10, help="training seeds 0..N-1 per arm (committed: 10)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--arms", default=",".join(ARMS))
     parser.add_argument("--force", action="store_true", help="retrain runs whose evaluation CSV exists")
@@ -185,7 +185,7 @@ def main(argv=None) -> int:
     budget = {"timesteps_per_run": args.timesteps, "training_seeds": args.seeds, "heldout_draws": 50,
               "env_steps_total": int(sum(r["env_steps"] for r in runs)),
               "train_wall_s_total": round(sum(r["train_wall_s"] for r in runs), 1),
-              "session_wall_s": round(time.time() - start, 1), "workers": args.workers,
+              "worker_wall_s_total": round(sum(r["wall_s"] for r in runs), 1), "workers": args.workers,
               "machine": f"{platform.platform()}, {os.cpu_count()} CPUs (shared, loaded)",
               "command": "python -m experiments.ablation_reward " + " ".join(argv if argv is not None else sys.argv[1:])}
     summary = summarize(RAW, budget)

@@ -490,18 +490,19 @@ def markdown_reward_ablation(path):
              "arms retrained by the same code): dense error reward -|a_estimate - a_true|/width(Theta) (uses the "
              "truth) against the information increment (df/da at a_estimate)^2, normalized "
              "(`baselines/rewards.py`, no truth):", "",
-             "| reward | settle time IQM (s) | RMS error IQM (A/m) | success | P(information better) |",
-             "|---|---|---|---|---|"]
+             "| reward | settle time IQM (s) | RMS error IQM (A/m) | final error IQM (A/m) | success | "
+             "P(information better) |", "|---|---|---|---|---|---|"]
     for arm in ("dense", "information"):
         if "settle_time_s" not in arms.get(arm, {}):
             continue
         entry = arms[arm]
         better = (", ".join(f"{m.split('_')[0]} {v['information_over_dense']:.2f} [{v['ci95'][0]:.2f}, "
-                            f"{v['ci95'][1]:.2f}]" for m, v in poi.items() if m in ("settle_time_s", "rms_error"))
+                            f"{v['ci95'][1]:.2f}]" for m, v in poi.items() if m in ("settle_time_s", "rms_error", "final_error"))
                   if arm == "information" else "")
-        lines.append(f"| {arm} | {_fmt(entry['settle_time_s'])} | {_fmt(entry['rms_error'])} | "
+        final = _fmt(entry["final_error"]) if "final_error" in entry else ""
+        lines.append(f"| {arm} | {_fmt(entry['settle_time_s'])} | {_fmt(entry['rms_error'])} | {final} | "
                      f"{entry['success_rate']:.0%} | {better} |")
-    return lines + [""]
+    return lines
 
 
 def markdown_pe(table):
