@@ -155,7 +155,7 @@ def calibrate(recording: Recording, structure: Structure, weights, fit_mask, max
 def _linear_pair(model):
     if "displacement" not in model.channels:
         return ()
-    gain = next((g for g in ("zetahat", "nu", "zeta2") if g in model.parameters), None)
+    gain = next((g for g in ("zetahat", "nu", "zeta2", "zeta_fem") if g in model.parameters), None)
     return (gain, "M0") if gain and model.structure.transducer != "lumped_nonlinear" else ()
 
 
@@ -224,7 +224,7 @@ def _effect_starts(model, effect, base_values):
         lo, hi = p["f2"].lower, p["f2"].upper
         return [dict(start, f2=f, g2=g) for f in np.geomspace(lo * 1.5, hi * 0.9, 3) for g in (0.02,)]
     if effect == "quadratic_magnetostriction":
-        gain = base_values.get("zetahat", base_values.get("nu", 1.0))
+        gain = next((base_values[g] for g in ("zetahat", "nu", "zeta_fem") if g in base_values), 1.0)
         scale = gain / (2 * max(abs(base_values.get("M0", 0.0)), 0.3 * base_values.get("Ms", 1.0)))
         return [dict(start, zeta_q=s * scale) for s in (1.0, -1.0)]
     if effect == "field_bias":
@@ -260,8 +260,6 @@ def diagnose(recording, model: str = "lumped", anhysteretic: str = "ising", fit_
     if not (0.05 <= holdout <= 0.5):
         raise ValueError(f"holdout must be in [0.05, 0.5], got {holdout!r}")
     transducer = model if "displacement" in recording.channels else "none"
-    if transducer == "fem":
-        raise ValueError("--model fem is not available yet: it needs hyst_gym.physics.fem (finite-element rod)")
     structure = Structure(transducer, anhysteretic, None, fit_mechanics)
     fit_mask, cut = _split(recording.size, holdout)
     held_mask = ~fit_mask

@@ -196,3 +196,7 @@ def first_order_system(rate, gain):
 
 __all__ = ["AMBIENT_TEMPERATURE", "MAGNETIC_COLUMNS", "first_order_system", "lti_response",
            "second_order_system", "simulate_members", "step_classes"]
+
+
+#: The compiled first-order-hold stepping loop, for models that build their own discretization.
+step_lti = _step_lti

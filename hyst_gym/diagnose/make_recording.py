@@ -19,7 +19,12 @@ Effects at ``strength = 1`` (the default; strength scales the effect's size):
 * ``thermal_drift``: coil temperature rises ~25 K over the record (a ~ T, eq. (4); Ms drops 0.1 %/K);
 * ``eddy_current``: ``H_eff = H - k_e dM/dt`` with k_e*|dM/dt| reaching ~5 % of the field amplitude;
 * ``quadratic_magnetostriction``: displacement forced by M^2 (12) instead of the linearized M (13);
-* ``rod_dynamics``: the finite-element rod (10) with a light tip load instead of the lumped mass;
+* ``rod_dynamics``: the finite-element rod (10) instead of the lumped mass: a light tip mass
+  (0.03-0.08 kg at strength 1; ``ML / strength``) and a low Kelvin-Voigt damping
+  (cD 1.5e4-6e4 Pa s, i.e. a loss factor of a few % at the second mode instead of the
+  GUIDE's 3e6 Pa s, which makes every mode above the first overdamped), so that the second
+  longitudinal mode (9-11 kHz, below the 20-30 kHz Nyquist frequency) rings after the
+  excitation's fast transitions. The lumped model with any chat/khat cannot reproduce that.
 * ``sensor_lag``: a first-order lag of 2-4 samples on every output sensor;
 * ``field_bias``: an unrecorded DC field of 10-20 % of the drive amplitude (a permanent magnet);
 * ``anhysteretic_shape``: Langevin (3) instead of Ising (2) (strength does not apply).
@@ -42,8 +47,13 @@ GENERATOR_EFFECTS = EFFECTS + ("none",)
 OVERSAMPLE = 4
 PAPER_ZETAHAT = 1.3724e-2  # m/s^2 per A/m, eq. (13)
 
-#: Rod data (GUIDE §2) used for rod_dynamics; the tip load is light so that rod modes matter.
-ROD = dict(Y=3.0e10, rho=9250.0, L=0.115, A=1.2668e-4, cD=3e6, kL=2e6, cL=1e3)
+#: Rod data (GUIDE §2) used for rod_dynamics, each drawn within +-5 %; the tip mass and the
+#: Kelvin-Voigt damping cD are drawn separately (see :func:`_rod_state_space`).
+ROD = dict(Y=3.0e10, rho=9250.0, L=0.115, A=1.2668e-4, kL=2e6, cL=1e3)
+#: Range of the Kelvin-Voigt damping for rod_dynamics, Pa s (log-uniform draw).
+ROD_KELVIN_VOIGT = (1.5e4, 6e4)
+#: Range of the tip mass for rod_dynamics at strength 1, kg (divided by the strength).
+ROD_TIP_MASS = (0.03, 0.08)
 
 
 def _excitation(rng, time):
@@ -70,10 +80,24 @@ def _excitation(rng, time):
     return field, amplitude, bias
 
 
-def _rod_state_space(rng, n_elements=12, tip_mass=0.05):
+def _broadband_drive(rng, time, amplitude):
+    """A repeated linear chirp (A/m) sweeping 3 kHz -> 12 kHz every 2-4 ms over the whole
+    record, with 8-15 % of the drive amplitude: the drive a rig uses to see the rod's
+    longitudinal modes (it spans the second mode at every draw of the rod data)."""
+    period = rng.uniform(2e-3, 4e-3)
+    f_lo, f_hi = 3e3, 12e3
+    local = np.mod(time - rng.uniform(0.0, period), period)
+    phase = 2 * np.pi * (f_lo * local + 0.5 * (f_hi - f_lo) / period * local ** 2)
+    return rng.uniform(0.08, 0.15) * amplitude * np.sin(phase)
+
+
+def _rod_state_space(rng, n_elements=12, strength=1.0):
     """FEM rod (10) from :mod:`hyst_gym.physics.fem` with rod data drawn within +-5 % of the
-    GUIDE's and a light tip mass; returns (A, B, C, static tip compliance in m/N)."""
-    rod = RodParams(**{k: v * rng.uniform(0.95, 1.05) for k, v in ROD.items()}, ML=tip_mass)
+    GUIDE's, a light tip mass and a low Kelvin-Voigt damping drawn from ``rng``; returns
+    (A, B, C, static tip compliance in m/N)."""
+    tip_mass = rng.uniform(*ROD_TIP_MASS) / max(strength, 1e-3)
+    kelvin_voigt = float(np.exp(rng.uniform(*np.log(ROD_KELVIN_VOIGT))))
+    rod = RodParams(**{k: v * rng.uniform(0.95, 1.05) for k, v in ROD.items()}, ML=tip_mass, cD=kelvin_voigt)
     fem = FEMRod(rod=rod, n_elements=n_elements)
     A, b = fem.state_matrices()
     C = np.zeros(2 * n_elements)
@@ -83,14 +107,18 @@ def _rod_state_space(rng, n_elements=12, tip_mass=0.05):
 
 
 def make_recording(effect: str = "none", seed: int = 0, strength: float = 1.0, output: str = "both",
-                   n_samples: int = 5000) -> tuple[Recording, dict]:
-    """Draw a synthetic recording with ``effect`` concealed in it; returns (recording, sidecar)."""
-    recording, sidecar, _ = make_recording_with_truth(effect, seed, strength, output, n_samples)
+                   n_samples: int = 5000, broadband: bool | None = None) -> tuple[Recording, dict]:
+    """Draw a synthetic recording with ``effect`` concealed in it; returns (recording, sidecar).
+
+    ``broadband`` adds a repeated 3-12 kHz chirp to the drive (see :func:`_broadband_drive`);
+    ``None`` means: only for ``rod_dynamics``, whose rod modes show only under such a drive.
+    """
+    recording, sidecar, _ = make_recording_with_truth(effect, seed, strength, output, n_samples, broadband)
     return recording, sidecar
 
 
 def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: float = 1.0, output: str = "both",
-                              n_samples: int = 5000) -> tuple[Recording, dict, dict]:
+                              n_samples: int = 5000, broadband: bool | None = None) -> tuple[Recording, dict, dict]:
     """As :func:`make_recording`, plus the true parameters (for tests and studies only)."""
     if effect not in GENERATOR_EFFECTS:
         raise ValueError(f"--effect must be one of {', '.join(GENERATOR_EFFECTS)}, got {effect!r}")
@@ -108,6 +136,12 @@ def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: flo
     time = np.arange(n_samples) / fs
     fine_time = np.arange(n_samples * OVERSAMPLE) / (fs * OVERSAMPLE)
     field, amplitude, bias = _excitation(rng, fine_time)
+    if broadband is None:
+        broadband = effect == "rod_dynamics"
+    if broadband:
+        # a separate stream, so the rest of the recording is the same with or without the chirp
+        field = field + _broadband_drive(np.random.default_rng(np.random.SeedSequence([int(seed), 6, 3])),
+                                         fine_time, amplitude)
     a = rng.uniform(4000, 9000); k = rng.uniform(800, 3000); rho = rng.uniform(-0.6, 0.4)
     Ms = rng.uniform(6e5, 9e5); c = rng.uniform(0.1, 0.4)
     curve = "langevin" if effect == "anhysteretic_shape" else "ising"
@@ -138,7 +172,7 @@ def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: flo
                                      25.0, AMBIENT_TEMPERATURE)[:, 0]
     M0 = float(np.median(magnetization))
     if effect == "rod_dynamics":
-        A, B, C, static = _rod_state_space(effect_rng, tip_mass=0.01 / max(strength, 1e-3))
+        A, B, C, static = _rod_state_space(effect_rng, strength=strength)
         # same static gain as the lumped model it replaces: zetahat/khat per unit (M - M0)
         gain = zetahat / khat / static
         displacement = lti_response(fine_time, gain * (magnetization - M0), A, B, C, start="steady")

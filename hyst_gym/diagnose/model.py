@@ -6,7 +6,12 @@ Base structures (``transducer``):
 * ``"first_order"`` -- displacement ``y' = -lam*y + nu*(M - M0)`` (scalar plant, GUIDE §2);
 * ``"lumped"`` -- linearized lumped model (13) about a bias magnetization M0:
   ``x'' + chat*x' + khat*x = zetahat*(M - M0)``;
-* ``"lumped_nonlinear"`` -- nonlinear lumped model (12): ``x'' + chat*x' + khat*x = zeta2*(M^2 - M0^2)``.
+* ``"lumped_nonlinear"`` -- nonlinear lumped model (12): ``x'' + chat*x' + khat*x = zeta2*(M^2 - M0^2)``;
+* ``"fem"`` -- the finite-element rod (10) of :class:`hyst_gym.physics.fem.FEMRod`
+  (``FEM_ELEMENTS`` elements, GUIDE rod data) linearized about M0: tip force
+  ``zeta_fem*(M - M0)`` (zeta_fem = 2*zeta*M0 in N per A/m); with ``fit_mechanics`` the
+  Young's modulus ``Y``, the tip mass ``ML`` and the Kelvin-Voigt damping ``cD`` are fitted
+  too (they set the rod's modes), else they stay at the GUIDE's values.
 
 Extensions (the GUIDE §6 vocabulary), each with named physical parameters and each equal to
 the base model when those parameters vanish:
@@ -38,8 +43,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..physics.fem import FEMRod
+from ..physics.transducers import RodParams
 from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, first_order_system, lti_response,
-                      second_order_system, simulate_members, step_classes)
+                      second_order_system, simulate_members, step_classes, step_lti)
 from .recording import Recording
 
 TRANSDUCERS = ("none", "first_order", "lumped", "lumped_nonlinear", "fem")
@@ -59,6 +66,10 @@ EFFECT_PARAMETERS = {
 PAPER_CHAT = 7.8899e3   # 1/s
 PAPER_KHAT = 6.4251e7   # 1/s^2
 PAPER_MS = 7.65e5       # A/m
+#: Elements of the ``fem`` base model's rod: its first two modes within ~1 % of a fine mesh.
+FEM_ELEMENTS = 8
+#: Rod data the ``fem`` base model fits (the others stay at the GUIDE's RodParams()).
+FEM_ROD_NAMES = ("Y", "ML", "cD")
 
 
 @dataclass(frozen=True)
@@ -194,15 +205,15 @@ class Model:
             gain = values["zeta2"]
         else:
             deviation = magnetization - M0
-            gain = values["nu"] if transducer == "first_order" else values["zetahat"]
+            gain = values[GAIN_NAMES[transducer]]
             # quadratic_magnetostriction: a second gain on (M - M0)^2 (kappa = zeta_q/gain)
             forcing = deviation + (values.get("zeta_q", 0.0) / gain) * deviation ** 2 if gain else deviation
+        if transducer == "fem":
+            return _fem_tip_displacement(self.recording.time, forcing, gain, values, self._classes)
         if transducer == "first_order":
             A, B, C = first_order_system(values["lam"], gain)
         elif transducer in ("lumped", "lumped_nonlinear"):
             A, B, C = second_order_system(values["khat"], values["chat"], gain)
-        else:
-            raise ValueError("the 'fem' base model needs hyst_gym.physics.fem, which is not available yet")
         g2 = values.get("g2", 0.0)
         if g2 != 0.0 and transducer != "first_order":
             omega = 2 * np.pi * values["f2"]
@@ -212,6 +223,34 @@ class Model:
             B = np.concatenate([B, B2])
             C = np.concatenate([C, C2])
         return lti_response(self.recording.time, forcing, A, B, C, start="steady", classes=self._classes)
+
+
+#: Name of the displacement gain of each base transducer.
+GAIN_NAMES = {"first_order": "nu", "lumped": "zetahat", "lumped_nonlinear": "zeta2", "fem": "zeta_fem"}
+
+
+def fem_rod(values) -> FEMRod:
+    """The ``fem`` base model's rod for a values dict (fitted Y, ML, cD where present)."""
+    rod = RodParams(**{n: values[n] for n in FEM_ROD_NAMES if n in values})
+    return FEMRod(rod=rod, n_elements=FEM_ELEMENTS)
+
+
+def _fem_tip_displacement(time, forcing, gain, values, classes):
+    """Tip displacement (m) of the FEM rod (10) under the tip force ``gain*forcing`` (N),
+    starting at the static equilibrium of the first sample. :meth:`FEMRod.discretize` gives
+    the exact first-order-hold update, one matrix exponential per distinct step length; the
+    steps run in the compiled loop of :func:`~hyst_gym.diagnose.kernels.lti_response`."""
+    fem = fem_rod(values)
+    steps, index = classes
+    discrete = [fem.discretize(float(dt)) for dt in steps]
+    phis = np.array([d.phi for d in discrete])
+    gamma0s = np.array([d.gamma0 for d in discrete])
+    gamma1s = np.array([d.gamma1 for d in discrete])
+    drive = gain * np.ascontiguousarray(forcing, dtype=np.float64)
+    output = np.zeros(2 * fem.n_elements)
+    output[discrete[0].output_index] = 1.0
+    state0 = discrete[0].static_response * drive[0]
+    return step_lti(drive, index, phis, gamma0s, gamma1s, output, state0)
 
 
 def _lag(time, signal, tau, classes):
@@ -256,7 +295,15 @@ def base_parameters(recording: Recording, structure: Structure) -> dict:
         x_span = float(np.ptp(recording.displacement)) or 1e-9
         m_scale = params["Ms"].value
         params["M0"] = Parameter("M0", 0.0, -2 * m_scale, 2 * m_scale, "A/m", scale=0.1 * m_scale)
-        if transducer == "first_order":
+        if transducer == "fem":
+            rod = RodParams()
+            fix = not structure.fit_mechanics
+            params["Y"] = Parameter("Y", rod.Y, rod.Y / 3, rod.Y * 3, "Pa", log=True, free=not fix)
+            params["ML"] = Parameter("ML", rod.ML, 1e-3, 20.0, "kg", log=True, free=not fix)
+            params["cD"] = Parameter("cD", rod.cD, 1e3, 1e8, "Pa s", log=True, free=not fix)
+            zeta = rod.lumped_stiffness * x_span / m_scale
+            params["zeta_fem"] = Parameter("zeta_fem", zeta, -1e4 * zeta, 1e4 * zeta, "N per A/m", scale=zeta)
+        elif transducer == "first_order":
             params["lam"] = Parameter("lam", 100.0, 0.01 / duration, 0.5 / dt, "1/s", log=True)
             nu = 100.0 * x_span / m_scale
             params["nu"] = Parameter("nu", nu, -1e3 * nu, 1e3 * nu, "m/s per A/m", scale=nu)
@@ -306,7 +353,7 @@ def extension_parameters(recording: Recording, structure: Structure, base_values
             out[name] = Parameter(name, dt if free else 0.0, 0.0, 0.05 * duration, "s", scale=dt, free=free)
     elif effect == "quadratic_magnetostriction":
         m_span = base_values.get("Ms", PAPER_MS)
-        gain = abs(base_values.get("zetahat", base_values.get("nu", 1.0))) or 1.0
+        gain = abs(next((base_values[g] for g in ("zetahat", "nu", "zeta_fem") if g in base_values), 1.0)) or 1.0
         out["zeta_q"] = Parameter("zeta_q", 0.0, -1e3 * gain / m_span, 1e3 * gain / m_span,
                                   "gain units per A/m", scale=0.1 * gain / m_span)
     elif effect == "rod_dynamics":

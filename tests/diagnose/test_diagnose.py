@@ -53,3 +53,16 @@ def test_generator_is_deterministic_and_conceals():
     assert a.temperature is None and set(a.channels) == {"magnetization", "displacement"}
     with pytest.raises(ValueError, match="displacement only"):
         make_recording("rod_dynamics", 1, output="magnetization")
+
+
+def test_fem_base_model_via_cli(tmp_path):
+    """``--model fem`` calibrates the finite-element rod base model and explains clean data."""
+    rec, side = make_recording("none", 3, n_samples=800)
+    path = write_recording(tmp_path / "clean.csv", rec, side)
+    status = cli.main(["diagnose", str(path), "--model", "fem", "--quiet", "--json", str(tmp_path / "f.json")])
+    assert status == 0
+    data = json.loads((tmp_path / "f.json").read_text())
+    assert data["baseline"]["model"] == "fem"
+    assert {"Y", "ML", "cD", "zeta_fem", "M0"} <= set(data["baseline"]["params"])
+    assert "rod_dynamics" not in {c["effect"] for c in data["candidates"]}   # the FEM rod has every mode
+    assert data["verdict"] == "none" and data["baseline"]["heldout_rmse"] < 1.3
