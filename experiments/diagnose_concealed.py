@@ -8,7 +8,10 @@ confusion matrix, the mean held-out improvement per effect, the false-alarm rate
 seconds per recording go to ``concealed.md``, ``concealed_summary.json`` and
 ``docs/figures/diagnose/confusion.png``.
 
-    .venv/bin/python experiments/diagnose_concealed.py --seeds 5 --jobs 2
+    .venv/bin/python experiments/diagnose_concealed.py --seeds 5 --jobs 2 --samples 4000
+
+``--effects E1 E2 --rerun`` recomputes only those effects' rows (e.g. after a generator change
+for them) and keeps the other effects' rows.
 """
 
 from __future__ import annotations
@@ -138,11 +141,19 @@ def main(argv=None):
     parser.add_argument("--first-seed", type=int, default=100)
     parser.add_argument("--samples", type=int, default=5000)
     parser.add_argument("--jobs", type=int, default=1)
-    parser.add_argument("--effects", nargs="*", default=list(GENERATOR_EFFECTS))
+    parser.add_argument("--effects", nargs="*", default=list(GENERATOR_EFFECTS), choices=GENERATOR_EFFECTS)
+    parser.add_argument("--rerun", action="store_true",
+                        help="drop the stored rows of --effects and recompute them (other effects' rows are kept)")
     args = parser.parse_args(argv)
     runs = RESULTS / "concealed_runs.csv"
     RESULTS.mkdir(parents=True, exist_ok=True)
     rows = load_rows(runs)
+    if args.rerun and rows:
+        rows = [r for r in rows if r["effect"] not in args.effects]
+        with open(runs, "w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=FIELDS)
+            writer.writeheader()
+            writer.writerows(rows)
     done = {(r["effect"], int(r["seed"])) for r in rows}
     jobs = [(e, s, args.samples) for e in args.effects
             for s in range(args.first_seed, args.first_seed + args.seeds) if (e, s) not in done]
