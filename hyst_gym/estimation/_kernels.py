@@ -67,33 +67,10 @@ def interpolate_bank(grid, values, theta, out_value, out_slope, out_curvature):
     d2f/dtheta2 (the latter piecewise linear) into the three output arrays (E,).
     """
     for e in range(values.shape[0]):
-        row = values[e]
-        t = theta[e]
-        j = _locate(grid, t)
-        h = grid[j + 1] - grid[j]
-        m0 = _node_slope(row, grid, j) * h
-        m1 = _node_slope(row, grid, j + 1) * h
-        f0 = row[j]
-        f1 = row[j + 1]
-        if t == grid[j]:
-            out_value[e] = f0
-            out_slope[e] = m0 / h
-            out_curvature[e] = (-6.0 * f0 - 4.0 * m0 + 6.0 * f1 - 2.0 * m1) / (h * h)
-            continue
-        if t == grid[j + 1]:
-            out_value[e] = f1
-            out_slope[e] = m1 / h
-            out_curvature[e] = (6.0 * f0 + 2.0 * m0 - 6.0 * f1 + 4.0 * m1) / (h * h)
-            continue
-        u = (t - grid[j]) / h
-        u2 = u * u
-        u3 = u2 * u
-        out_value[e] = ((2.0 * u3 - 3.0 * u2 + 1.0) * f0 + (u3 - 2.0 * u2 + u) * m0
-                        + (-2.0 * u3 + 3.0 * u2) * f1 + (u3 - u2) * m1)
-        out_slope[e] = ((6.0 * u2 - 6.0 * u) * f0 + (3.0 * u2 - 4.0 * u + 1.0) * m0
-                        + (-6.0 * u2 + 6.0 * u) * f1 + (3.0 * u2 - 2.0 * u) * m1) / h
-        out_curvature[e] = ((12.0 * u - 6.0) * f0 + (6.0 * u - 4.0) * m0
-                            + (-12.0 * u + 6.0) * f1 + (6.0 * u - 2.0) * m1) / (h * h)
+        value, slope, curvature = _interpolate_one(grid, values[e], theta[e])
+        out_value[e] = value
+        out_slope[e] = slope
+        out_curvature[e] = curvature
 
 
 @njit(cache=True)
