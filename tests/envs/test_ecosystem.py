@@ -84,11 +84,15 @@ def test_short_ppo_run_on_native_vector_env():
     from hyst_gym.envs import make_sb3_vec_env
     venv = make_sb3_vec_env("hyst_gym/Excitation-v0", num_envs=8, seed=0, episode_steps=200)
     model = PPO("MlpPolicy", venv, n_steps=128, batch_size=256, n_epochs=2, seed=0, device="cpu", verbose=0)
+    before = [p.detach().clone() for p in model.policy.parameters()]
     model.learn(total_timesteps=4096)
     assert model.num_timesteps >= 4096
+    # the rollouts from the native vector env reached the optimizer: the policy moved
+    assert any(not np.allclose(b.numpy(), p.detach().numpy()) for b, p in zip(before, model.policy.parameters()))
     obs = venv.reset()
+    assert obs.shape == (8,) + venv.observation_space.shape and np.all(np.isfinite(obs))
     action, _ = model.predict(obs, deterministic=True)
-    assert action.shape == (8, 1) and np.all(np.abs(action) <= 1.0)
+    assert action.shape == (8, 1)
 
 
 def test_rgb_array_frame_and_png(tmp_path):
