@@ -3,7 +3,15 @@
 The environment's own reward (``Excitation-v0``) is the *dense error* reward
 ``-|a_estimate - a_true| / width(Theta)`` per step: it needs the truth ``a_true``, which a
 simulator has but a real rig does not. :class:`InformationRewardVecEnv` replaces it by an
-*information increment* about a that uses no truth at all.
+*information increment* about a that uses no truth at all; :class:`BandRewardVecEnv` by the
+benchmark's own metric, time outside the settle band (truth needed, like the dense reward).
+
+Band reward
+-----------
+``r_t = -1`` while ``|a_estimate - a_true| > band_fraction*a_true`` (default 0.1 %, the
+settle band of the benchmark), else 0. The undiscounted return is minus the number of
+steps spent outside the band, a lower bound on (minus) the settle time in steps that
+equals it when the estimate enters the band once and stays: the reward is the metric.
 
 Information increment
 ---------------------
@@ -97,4 +105,31 @@ class InformationRewardVecEnv(VecEnvWrapper):
         return observations, rewards, dones, infos
 
 
-__all__ = ["DEFAULT_SLOPE_SCALE", "information_increment", "InformationRewardVecEnv"]
+class BandRewardVecEnv(VecEnvWrapper):
+    """SB3 ``VecEnv`` wrapper: the reward becomes ``-1`` per step outside the settle band.
+
+    Placed like :class:`InformationRewardVecEnv` (directly on the adapter). Reads
+    ``a_estimate`` and ``a_true`` from the native simulator after the step; as with the
+    information reward, the last step of an episode is read from the fresh episode that
+    SB3's same-step reset has already started (one step in ``episode_steps``).
+    """
+
+    def __init__(self, venv, band_fraction: float = 1e-3):
+        super().__init__(venv)
+        if not 0 < band_fraction < 1:
+            raise ValueError(f"band_fraction must be in (0, 1), got {band_fraction}")
+        self.band_fraction = float(band_fraction)
+        self._sim = _simulator(venv)
+
+    def reset(self):
+        return self.venv.reset()
+
+    def step_wait(self):
+        observations, dense, dones, infos = self.venv.step_wait()
+        outside = np.abs(self._sim.a_estimate - self._sim.a_true) > self.band_fraction * self._sim.a_true
+        for info, value in zip(infos, dense):
+            info["dense_reward"] = float(value)
+        return observations, -outside.astype(np.float32), dones, infos
+
+
+__all__ = ["DEFAULT_SLOPE_SCALE", "information_increment", "InformationRewardVecEnv", "BandRewardVecEnv"]

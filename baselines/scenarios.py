@@ -2,8 +2,10 @@
 
 A :class:`Scenario` fixes the environment settings, the common excitation limits and the
 prior of a used by the optimal design. The environment keyword arguments are built by
-:func:`env_kwargs` from plain values so that a scenario can be shipped to another
-process.
+:func:`env_kwargs` from plain values (and frozen, picklable physics dataclasses such as a
+:class:`~hyst_gym.physics.FEMRod`) so that a scenario can be shipped to another process.
+Scenarios with ``trained_in`` set are evaluation-only (generalization): they play the
+schedules, designs and policies of another scenario.
 
 Seeds: every agent is evaluated on :data:`HELDOUT_SEEDS` (50 draws of temperature, drift
 and noise, issue 5 "Statistical protocol"). Learning curves use :data:`VALIDATION_SEEDS`
@@ -15,6 +17,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from hyst_gym.physics import DEFAULT_BIAS_MAGNETIZATION, FEMRod
 
 from .environment import EpisodeSpec
 from .schedules import ExcitationLimits
@@ -36,7 +40,7 @@ class Scenario:
     name : str
     description : str
     settings : dict
-        Plain-valued environment settings (see :func:`env_kwargs`).
+        Environment settings, overrides of :class:`hyst_gym.envs.EnvConfig` fields.
     limits : ExcitationLimits
         Field (A/m), slew (A/m/s) limits and control period (s) shared by every agent.
     episode_s : float
@@ -108,10 +112,22 @@ SCENARIOS = {
                           prior_a=_DRIFT_PRIOR, trained_in="drift"),
     "drift_noisy": Scenario("drift_noisy", "Drift with 10x the output noise", {**_DRIFT, "output_noise": 1e-3},
                             _DRIFT_LIMITS, 60.0, prior_a=_DRIFT_PRIOR, trained_in="drift"),
+    # generalization (evaluation only): policies trained in "paper", played on the FEM rod (10)
+    # whose estimator assumes the lumped model (13) (hyst_gym.envs.core.estimator_plant)
+    "paper_fem": Scenario("paper_fem", "Paper case on the 16-element FEM rod linearized about the bias; "
+                          "the vector estimator assumes the lumped model (13)",
+                          {**_PAPER, "transducer": FEMRod(bias_magnetization=DEFAULT_BIAS_MAGNETIZATION)},
+                          _PAPER_LIMITS, 10.0, prior_a=_DRIFT_PRIOR, trained_in="paper"),
+    "paper_fem_nonlinear": Scenario("paper_fem_nonlinear", "Paper case on the FEM rod with the quadratic "
+                                    "force zeta*M**2 of (10) and no bias; the estimator assumes (13)",
+                                    {**_PAPER, "transducer": FEMRod()}, _PAPER_LIMITS, 10.0,
+                                    prior_a=_DRIFT_PRIOR, trained_in="paper"),
 }
+#: scenarios a policy can be trained in (the others are evaluation-only)
+TRAINING_SCENARIOS = tuple(name for name, scenario in SCENARIOS.items() if scenario.trained_in is None)
 
 __all__ = ["HELDOUT_SEEDS", "VALIDATION_SEEDS", "TUNING_SEEDS", "EXCITATION_ID", "ESTIMATION_ID", "Scenario",
-           "SCENARIOS", "env_kwargs", "scenario_spec"]
+           "SCENARIOS", "TRAINING_SCENARIOS", "env_kwargs", "scenario_spec"]
 
 
 def scenario_spec(name: str, env_id: str = EXCITATION_ID) -> EpisodeSpec:

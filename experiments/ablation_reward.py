@@ -1,7 +1,7 @@
-"""Reward ablation (issue 5, "Ablations"): dense error reward against an information increment.
+"""Reward ablation (issue 5, "Ablations"): dense error reward, information increment, band time.
 
     python -m experiments.ablation_reward [--timesteps 50000] [--seeds 10] [--workers 2]
-                                          [--arms dense,information] [--force]
+                                          [--arms dense,information,band] [--force]
 
 Both arms are the committed ``ppo_stack8`` configuration in the ``paper`` scenario (PPO,
 8 stacked frames, :data:`baselines.train.DEFAULT_HYPERPARAMS`, 8 sub-envs, training seeds
@@ -9,7 +9,9 @@ Both arms are the committed ``ppo_stack8`` configuration in the ``paper`` scenar
 
 * ``dense`` -- the environment's own ``-|a_estimate - a_true|/width(Theta)`` (uses the truth);
 * ``information`` -- :class:`baselines.rewards.InformationRewardVecEnv`, the per-step
-  increment of the Fisher information about a at the estimate (uses no truth).
+  increment of the Fisher information about a at the estimate (uses no truth);
+* ``band`` -- :class:`baselines.rewards.BandRewardVecEnv`, -1 per step outside the 0.1 %
+  settle band: the benchmark's metric itself as the reward (uses the truth).
 
 Both arms are (re)trained here at the same budget so that they share the code and the
 environment version, then evaluated by :func:`baselines.evaluation.run_episodes` on the
@@ -20,7 +22,7 @@ Writes (under ``experiments/results/``)::
     raw/ablation_reward/train/<arm>/seed<k>/   model.zip, config.json, learning_curve.csv
     raw/ablation_reward/eval/<arm>/run<k>.csv  one row per held-out episode
     ablation_reward.json                       IQM + 95 % stratified-bootstrap CI per arm and
-                                               metric, P(information better than dense)
+                                               metric, P(arm better than dense)
 
 TensorBoard logs and checkpoints are deleted after training (they are not results).
 """
@@ -42,24 +44,27 @@ import numpy as np
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 RAW = RESULTS / "raw" / "ablation_reward"
 SUMMARY = RESULTS / "ablation_reward.json"
-ARMS = ("dense", "information")
+ARMS = ("dense", "information", "band")
 SCENARIO = "paper"
 CONFIG = "ppo_stack8"
 METRICS = ("settle_time_s", "integrated_error", "rms_error", "final_error")
 EVAL_EVERY, EVAL_EPISODES = 5_000, 4  # as the committed full profile's learning curves
 
 
-def _information_env_builder(spec, n_envs, seed, n_stack=1):
-    """:func:`baselines.environment.make_sb3_vec_env` with the information reward under the monitor."""
-    from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor
+def _reward_env_builder(wrapper):
+    """:func:`baselines.environment.make_sb3_vec_env` with ``wrapper``'s reward under the monitor."""
 
-    from baselines.rewards import InformationRewardVecEnv
-    from hyst_gym.envs.sb3 import make_sb3_vec_env
+    def build(spec, n_envs, seed, n_stack=1):
+        from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor
 
-    venv = make_sb3_vec_env(spec.env_id, num_envs=n_envs, seed=seed, max_episode_steps=spec.max_episode_steps,
-                            **spec.env_kwargs)
-    venv = VecMonitor(InformationRewardVecEnv(venv))
-    return VecFrameStack(venv, n_stack) if n_stack > 1 else venv
+        from hyst_gym.envs.sb3 import make_sb3_vec_env
+
+        venv = make_sb3_vec_env(spec.env_id, num_envs=n_envs, seed=seed, max_episode_steps=spec.max_episode_steps,
+                                **spec.env_kwargs)
+        venv = VecMonitor(wrapper(venv))
+        return VecFrameStack(venv, n_stack) if n_stack > 1 else venv
+
+    return build
 
 
 def train_and_evaluate(arm: str, seed: int, timesteps: int, raw: str) -> dict:
@@ -76,10 +81,13 @@ def train_and_evaluate(arm: str, seed: int, timesteps: int, raw: str) -> dict:
     scenario = SCENARIOS[SCENARIO]
     folder = pathlib.Path(raw) / "train" / arm / f"seed{seed}"
     start = time.time()
+    from baselines.rewards import BandRewardVecEnv, InformationRewardVecEnv
+
     original = training.make_sb3_vec_env
-    if arm == "information":
+    wrapper = {"information": InformationRewardVecEnv, "band": BandRewardVecEnv}.get(arm)
+    if wrapper is not None:
         # same train() code path; only its env builder is swapped, for this call only
-        training.make_sb3_vec_env = _information_env_builder
+        training.make_sb3_vec_env = _reward_env_builder(wrapper)
     try:
         training.train(algo, scenario.spec(), timesteps, seed, folder, n_envs=8, n_stack=n_stack,
                        checkpoint_every=0, eval_every=EVAL_EVERY, eval_episodes=EVAL_EPISODES,
@@ -116,7 +124,7 @@ def _read_metric(arm, metric, raw=RAW, censored=True):
 
 def summarize(raw=RAW, budget=None) -> dict:
     """Summary of the raw CSVs: per arm and metric ``{"iqm", "ci95", "n", "runs"}``, the
-    success rate, and P(information better than dense) with its interval."""
+    success rate, and P(arm better than dense) with its interval for the other arms."""
     from experiments.stats import probability_of_improvement, probability_of_improvement_ci, summarize as stat
 
     out = {"scenario": SCENARIO, "config": CONFIG, "arms": {}, "probability_of_improvement": {}}
@@ -132,12 +140,12 @@ def summarize(raw=RAW, budget=None) -> dict:
         settle = _read_metric(arm, "settle_time_s", raw, censored=False)
         if settle.size:
             out["arms"][arm]["success_rate"] = float(np.mean(np.isfinite(settle)))
-    for metric in METRICS:
-        if ("information", metric) in scores and ("dense", metric) in scores:
-            x, y = scores["information", metric], scores["dense", metric]
-            out["probability_of_improvement"][metric] = {
-                "information_over_dense": probability_of_improvement(x, y),
-                "ci95": list(probability_of_improvement_ci(x, y))}
+    for arm in ARMS[1:]:
+        for metric in METRICS:
+            if (arm, metric) in scores and ("dense", metric) in scores:
+                x, y = scores[arm, metric], scores["dense", metric]
+                out["probability_of_improvement"].setdefault(arm, {})[metric] = {
+                    "over_dense": probability_of_improvement(x, y), "ci95": list(probability_of_improvement_ci(x, y))}
     if budget:
         out.update(budget)
     return out

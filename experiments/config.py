@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from baselines.registry import DESIGN_AGENTS, ESTIMATOR_AGENTS, SCHEDULE_AGENTS
+from baselines.scenarios import SCENARIOS
 
 
 @dataclass(frozen=True)
@@ -63,8 +64,11 @@ SCENARIO_NAMES = ("paper", "drift", "lumped")
 #: Agents run in the lumped scenario (its plant is slow to simulate, so the set is reduced;
 #: RL is trained in the paper and drift scenarios only).
 LUMPED_AGENTS = ("ramp", "sine", "optimal_design", "minmax", "multiple_model")
-#: Generalization (issue 5, "Experiments" 4): evaluation-only scenarios and the agents run there.
-GENERALIZATION = {"drift_hot": ("sine", "ppo_stack8"), "drift_noisy": ("sine", "ppo_stack8")}
+#: Generalization (issue 5, "Experiments" 4): evaluation-only scenarios and the agents run
+#: there; each plays the artifacts of its ``Scenario.trained_in`` (drift or paper).
+GENERALIZATION = {"drift_hot": ("sine", "ppo_stack8"), "drift_noisy": ("sine", "ppo_stack8"),
+                  "paper_fem": ("ramp", "sine", "optimal_design", "ppo_stack8"),
+                  "paper_fem_nonlinear": ("ramp", "sine", "optimal_design", "ppo_stack8")}
 
 
 def declared_jobs(profile: str = "full", scenarios=SCENARIO_NAMES):
@@ -98,13 +102,16 @@ def declared_jobs(profile: str = "full", scenarios=SCENARIO_NAMES):
                                      ("eval_episodes", p["eval_episodes"]))))
                     evals.append(Job("eval", scenario, config, seed, (("episodes", p["episodes"]),)))
     for scenario, agents in GENERALIZATION.items():
-        if "drift" not in scenarios or not p.get("generalization", True):
+        source = SCENARIOS[scenario].trained_in
+        if source not in scenarios or not p.get("generalization", True):
             continue
+        trained = p["rl_configs"] if source == "paper" else p["drift_rl_configs"]
+        if source not in p["rl_scenarios"]:
+            trained = ()
         for agent in agents:
             if agent in RL_CONFIGS:
-                if agent in p["drift_rl_configs"]:
-                    evals += [Job("eval", scenario, agent, seed, (("episodes", p["episodes"]),))
-                              for seed in range(p["rl_seeds"])]
+                evals += [Job("eval", scenario, agent, seed, (("episodes", p["episodes"]),))
+                          for seed in range(p["rl_seeds"]) if agent in trained]
             else:
                 evals.append(Job("eval", scenario, agent, 0, (("episodes", p["episodes"]),)))
     train = [j for j in prep if j.kind == "train"]

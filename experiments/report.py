@@ -121,9 +121,12 @@ def targets(table, summary):
         best_rl = min(rl_paper, key=lambda a: paper[a]["settle_time_s"]["iqm"])
         ramp = paper["ramp"]["settle_time_s"]
         rl = paper[best_rl]["settle_time_s"]
+        baseline = best_baseline(paper, "settle_time_s")
         out["paper_settle_half_ramp"] = {"best_rl": best_rl, "rl_iqm": rl["iqm"], "rl_ci95": rl["ci95"],
                                          "ramp_iqm": ramp["iqm"], "ramp_ci95": ramp["ci95"],
-                                         "met": bool(rl["iqm"] <= 0.5 * ramp["iqm"])}
+                                         "met": bool(rl["iqm"] <= 0.5 * ramp["iqm"]),
+                                         "best_non_rl": baseline,
+                                         "best_non_rl_iqm": paper[baseline]["settle_time_s"]["iqm"]}
         design = paper.get("optimal_design", {}).get("settle_time_s")
         if design:
             episode_s = _episode_s(table["paper"][best_rl])
@@ -377,12 +380,23 @@ def _fmt(entry, digits=3):
     return f"{entry['iqm']:.{digits}g} [{entry['ci95'][0]:.{digits}g}, {entry['ci95'][1]:.{digits}g}]"
 
 
+def _scenario_description(name):
+    from baselines.scenarios import SCENARIOS
+
+    scenario = SCENARIOS.get(name)
+    if scenario is None:
+        return ""
+    trained = f" Agents tuned, designed and trained in `{scenario.trained_in}`." if scenario.trained_in else ""
+    return f"{scenario.description}.{trained}"
+
+
 def markdown_tables(summary, success, poi, table):
     lines = []
     for scenario in summary:
         agents = {a: v for a, v in summary[scenario].items() if a not in RL_MAIN}
         episode_s = max(_episode_s(runs) for runs in table[scenario].values())
         lines += [f"### Scenario `{scenario}` (episodes of {episode_s:g} s, {len(agents)} agents)", "",
+                  *([_scenario_description(scenario), ""] if _scenario_description(scenario) else []),
                   "| agent | runs x draws | settle time IQM (s) [95 % CI] | success | RMS error IQM (A/m) [95 % CI] | "
                   "P(improve) settle | P(improve) RMS |", "|---|---|---|---|---|---|---|"]
         for agent in sorted(agents, key=lambda a: agents[a]["settle_time_s"]["iqm"]):
@@ -405,6 +419,11 @@ def markdown_targets(tgt):
                      f"IQM {t['rl_iqm']:.3g} s [{t['rl_ci95'][0]:.3g}, {t['rl_ci95'][1]:.3g}] vs ramp "
                      f"{t['ramp_iqm']:.3g} s [{t['ramp_ci95'][0]:.3g}, {t['ramp_ci95'][1]:.3g}]: "
                      f"**{'met' if t['met'] else 'NOT met'}**.")
+        if t.get("best_non_rl"):
+            gap = 1.0 - 0.5 * t["ramp_iqm"] / t["best_non_rl_iqm"]
+            lines.append(f"  For scale: the best non-RL input, `{t['best_non_rl']}`, settles at "
+                         f"{t['best_non_rl_iqm']:.3g} s, so half the ramp ({0.5 * t['ramp_iqm']:.3g} s) asks RL to "
+                         f"settle {gap:.0%} faster than the best input found without RL.")
     else:
         lines.append("- Paper scenario target: no RL results in this run.")
     t = tgt.get("drift_rms_half_best_schedule")
@@ -430,19 +449,28 @@ def markdown_targets(tgt):
     return lines
 
 
+#: history ablation (issue 5, "Ablations"): the frame-stacked main config against these
+HISTORY_ALTERNATIVES = {"ppo_stack1": "no history, 1 frame", "ppo_lstm": "recurrent: sb3-contrib RecurrentPPO, LSTM"}
+
+
 def history_ablation(table, summary):
-    """Frame stacking (8 frames) against no history (1 frame), PPO, paper scenario."""
+    """Frame stacking (8 frames) against no history and against a recurrent policy, PPO, paper
+    scenario: ``{alternative: {metric: {...}}}`` for the alternatives that were run."""
     paper = table.get("paper", {})
-    if "ppo_stack8" not in paper or "ppo_stack1" not in paper:
+    if "ppo_stack8" not in paper:
         return {}
     out = {}
     episode_s = _episode_s(paper["ppo_stack8"])
-    for metric in ("settle_time_s", "rms_error"):
-        x = score_matrix(paper["ppo_stack8"], metric, episode_s)
-        y = score_matrix(paper["ppo_stack1"], metric, episode_s)
-        out[metric] = {"stack8": summary["paper"]["ppo_stack8"][metric], "stack1": summary["paper"]["ppo_stack1"][metric],
-                       "probability_stack8_better": probability_of_improvement(x, y),
-                       "ci95": list(probability_of_improvement_ci(x, y, n_boot=500))}
+    for other in HISTORY_ALTERNATIVES:
+        if other not in paper:
+            continue
+        for metric in ("settle_time_s", "rms_error"):
+            x = score_matrix(paper["ppo_stack8"], metric, episode_s)
+            y = score_matrix(paper[other], metric, episode_s)
+            out.setdefault(other, {})[metric] = {
+                "stack8": summary["paper"]["ppo_stack8"][metric], "other": summary["paper"][other][metric],
+                "probability_stack8_better": probability_of_improvement(x, y),
+                "ci95": list(probability_of_improvement_ci(x, y, n_boot=500))}
     return out
 
 
@@ -468,11 +496,14 @@ def markdown_budget(budget, sessions):
 
 def markdown_ablation(ablation):
     lines = []
-    for metric, entry in ablation.items():
-        lines.append(f"- History, {metric}: `ppo_stack8` {_fmt(entry['stack8'])} vs `ppo_stack1` {_fmt(entry['stack1'])}; "
-                     f"P(stack8 better) = {entry['probability_stack8_better']:.2f} "
-                     f"[{entry['ci95'][0]:.2f}, {entry['ci95'][1]:.2f}].")
-    lines.append("- A recurrent policy (sb3-contrib RecurrentPPO) was not run: sb3-contrib is not a dependency.")
+    for other, metrics in ablation.items():
+        for metric, entry in metrics.items():
+            lines.append(f"- History, {metric}: `ppo_stack8` (8 stacked frames) {_fmt(entry['stack8'])} vs `{other}` "
+                         f"({HISTORY_ALTERNATIVES[other]}) {_fmt(entry['other'])}; P(stack8 better) = "
+                         f"{entry['probability_stack8_better']:.2f} [{entry['ci95'][0]:.2f}, {entry['ci95'][1]:.2f}].")
+    if "ppo_lstm" not in ablation:
+        lines.append("- A recurrent policy (`ppo_lstm`, sb3-contrib RecurrentPPO) is declared but has no results in "
+                     "this run.")
     lines += markdown_reward_ablation(DEFAULT_RESULTS / "ablation_reward.json")
     return lines
 
@@ -486,19 +517,18 @@ def markdown_reward_ablation(path):
     data = json.loads(path.read_text())
     arms, poi = data["arms"], data["probability_of_improvement"]
     lines = [f"- Reward ablation (`python -m experiments.ablation_reward`, `{data['config']}` in `{data['scenario']}`, "
-             f"{data.get('training_seeds', '?')} seeds x {data.get('timesteps_per_run', 0):,} steps per arm, both "
-             "arms retrained by the same code): dense error reward -|a_estimate - a_true|/width(Theta) (uses the "
-             "truth) against the information increment (df/da at a_estimate)^2, normalized "
-             "(`baselines/rewards.py`, no truth):", "",
+             f"{data.get('training_seeds', '?')} seeds x {data.get('timesteps_per_run', 0):,} steps per arm, every "
+             "arm retrained by the same code): dense error reward -|a_estimate - a_true|/width(Theta) (uses the "
+             "truth), the information increment (df/da at a_estimate)^2, normalized (no truth), and the band "
+             "reward, -1 per step outside the 0.1 % settle band (the metric itself; uses the truth) "
+             "(`baselines/rewards.py`):", "",
              "| reward | settle time IQM (s) | RMS error IQM (A/m) | final error IQM (A/m) | success | "
-             "P(information better) |", "|---|---|---|---|---|---|"]
-    for arm in ("dense", "information"):
-        if "settle_time_s" not in arms.get(arm, {}):
+             "P(better than dense) |", "|---|---|---|---|---|---|"]
+    for arm, entry in arms.items():
+        if "settle_time_s" not in entry:
             continue
-        entry = arms[arm]
-        better = (", ".join(f"{m.split('_')[0]} {v['information_over_dense']:.2f} [{v['ci95'][0]:.2f}, "
-                            f"{v['ci95'][1]:.2f}]" for m, v in poi.items() if m in ("settle_time_s", "rms_error", "final_error"))
-                  if arm == "information" else "")
+        better = ", ".join(f"{m.split('_')[0]} {v['over_dense']:.2f} [{v['ci95'][0]:.2f}, {v['ci95'][1]:.2f}]"
+                           for m, v in poi.get(arm, {}).items() if m in ("settle_time_s", "rms_error", "final_error"))
         final = _fmt(entry["final_error"]) if "final_error" in entry else ""
         lines.append(f"| {arm} | {_fmt(entry['settle_time_s'])} | {_fmt(entry['rms_error'])} | {final} | "
                      f"{entry['success_rate']:.0%} | {better} |")

@@ -153,11 +153,13 @@ def _evaluate(job, raw, out):
     from baselines.evaluation import run_episodes
     from baselines.registry import ESTIMATOR_AGENTS, make_agent
     from baselines.rl import PolicyAgent
-    from baselines.scenarios import ESTIMATION_ID, EXCITATION_ID, HELDOUT_SEEDS
+    from baselines.scenarios import ESTIMATION_ID, EXCITATION_ID, HELDOUT_SEEDS, SCENARIOS
+    from baselines.transfer import adapt_agent
 
     scenario = _scenario(job)
     if job.agent in RL_CONFIGS:
         agent = PolicyAgent.load(raw / "train" / scenario.source / job.agent / f"seed{job.run}", name=job.agent)
+        agent = adapt_agent(agent, SCENARIOS[scenario.source], scenario)  # e.g. y -> tip displacement on the rod
     else:
         agent = make_agent(job.agent, scenario, raw)
     env_id = ESTIMATION_ID if job.agent in ESTIMATOR_AGENTS else EXCITATION_ID

@@ -56,3 +56,37 @@ def test_rejects_an_env_without_the_built_in_estimator():
     spec = SCENARIOS["paper"].spec()
     with pytest.raises(ValueError, match="built-in estimator"):
         InformationRewardVecEnv(DummyVecEnv([spec.make]))
+
+
+def test_band_reward_counts_the_steps_outside_the_settle_band():
+    # paper case: thetahat(0) = 6990 against a = 7012, 22 A/m off, outside the 0.1 % band (7 A/m);
+    # at rest (H = 0) the estimate cannot move, so every step costs -1; a wide band costs nothing
+    from hyst_gym.envs.sb3 import make_sb3_vec_env
+
+    from baselines.rewards import BandRewardVecEnv
+
+    spec = SCENARIOS["paper"].spec()
+    envs = [BandRewardVecEnv(make_sb3_vec_env(spec.env_id, num_envs=2, seed=0, max_episode_steps=spec.max_episode_steps,
+                                              **spec.env_kwargs), band_fraction=fraction)
+            for fraction in (1e-3, 0.01)]
+    for env in envs:
+        env.reset()
+    for _ in range(50):
+        tight = envs[0].step(np.zeros((2, 1), dtype=np.float32))[1]
+        wide = envs[1].step(np.zeros((2, 1), dtype=np.float32))[1]
+        assert np.array_equal(tight, [-1.0, -1.0]) and np.array_equal(wide, [0.0, 0.0])
+    # driven towards the knee of the curve, the estimate enters the band, and the reward is
+    # exactly the band indicator of the truth and the estimate the env reports
+    env = BandRewardVecEnv(make_sb3_vec_env(spec.env_id, num_envs=2, seed=0, info_keys=("a_true", "a_estimate"),
+                                            max_episode_steps=spec.max_episode_steps, **spec.env_kwargs))
+    env.reset()
+    rewards = []
+    for _ in range(400):
+        _, reward, _, infos = env.step(np.full((2, 1), 0.85, dtype=np.float32))
+        error = np.array([abs(i["a_estimate"] - i["a_true"]) for i in infos])
+        assert np.array_equal(reward, -(error > 1e-3 * np.array([i["a_true"] for i in infos])).astype(np.float32))
+        rewards.append(reward)
+    rewards = np.array(rewards)
+    assert np.all(rewards[:100] == -1.0) and np.all(rewards[-50:] == 0.0)
+    with pytest.raises(ValueError, match="band_fraction"):
+        BandRewardVecEnv(envs[1], band_fraction=0.0)

@@ -71,3 +71,30 @@ def test_report_summary_matches_raw_and_checks_targets(tmp_path):
 def test_report_without_results_is_a_clear_error(tmp_path):
     with pytest.raises(OSError, match="no evaluation results"):
         report.write_report(tmp_path)
+
+
+def test_history_ablation_covers_no_history_and_recurrent_and_targets_name_the_best_input(tmp_path):
+    rng = np.random.default_rng(1)
+    results = tmp_path / "results"
+    raw = results / "raw"
+    ramp = _write_runs(raw, "paper", "ramp", 1, rng, 4.0)
+    design = _write_runs(raw, "paper", "optimal_design", 1, rng, 1.5)
+    _write_runs(raw, "paper", "sine", 1, rng, 3.0)
+    _write_runs(raw, "paper", "ppo_stack8", 5, rng, 1.0)
+    _write_runs(raw, "paper", "ppo_stack1", 5, rng, 5.0)
+    lstm = _write_runs(raw, "paper", "ppo_lstm", 5, rng, 0.5)
+    report.write_report(results, readme=None, n_boot=200)
+    details = json.loads((results / "details.json").read_text())
+    ablation = details["history_ablation"]
+    assert set(ablation) == {"ppo_stack1", "ppo_lstm"}
+    entry = ablation["ppo_lstm"]["settle_time_s"]
+    assert entry["other"]["iqm"] == pytest.approx(iqm(np.array([run[0] for run in lstm])))
+    # stack8 (scale 1.0) beats no history (scale 5.0) and loses to the faster recurrent runs (scale 0.5)
+    assert ablation["ppo_stack1"]["settle_time_s"]["probability_stack8_better"] > 0.5
+    assert entry["probability_stack8_better"] < 0.5
+    target = details["targets"]["paper_settle_half_ramp"]
+    assert target["best_non_rl"] == "optimal_design"
+    assert target["best_non_rl_iqm"] == pytest.approx(iqm(design[0][0]))
+    text = (tmp_path / "RESULTS.md").read_text()
+    assert "`ppo_lstm` (recurrent" in text and "no results in this run" not in text
+    assert f"half the ramp ({0.5 * iqm(ramp[0][0]):.3g} s)" in text

@@ -76,5 +76,10 @@ def test_declared_full_profile_meets_the_protocol():
     train_stage = next(i for i, s in enumerate(stages) if any(j.kind == "train" for j in s))
     assert all(j.kind != "eval" or not j.agent.startswith(("ppo", "sac"))
                for stage in stages[:train_stage + 1] for j in stage)
+    # generalization: the paper policies of every seed, and the paper baselines, on the FEM rod
+    for scenario in ("paper_fem", "paper_fem_nonlinear"):
+        played = {(j.agent, j.run) for j in evals if j.scenario == scenario}
+        assert {("ppo_stack8", seed) for seed in range(5)} | {("optimal_design", 0), ("ramp", 0)} <= played
+        assert all(j in stages[-1] for j in evals if j.scenario == scenario and j.agent.startswith("ppo"))
     with pytest.raises(ValueError, match="unknown profile"):
         declared_jobs("huge")
