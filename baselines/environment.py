@@ -75,11 +75,16 @@ def step_info(infos, n: int) -> dict:
     return out
 
 
-def make_sb3_vec_env(spec: EpisodeSpec, n_envs: int, seed: int, n_stack: int = 1):
+def make_sb3_vec_env(spec: EpisodeSpec, n_envs: int, seed: int, n_stack: int = 1, reward: str = "dense"):
     """An SB3 ``VecEnv`` for training: the envs layer's adapter over the native vector env
-    when it provides one, else ``DummyVecEnv``; frame-stacked when ``n_stack > 1``."""
+    when it provides one, else ``DummyVecEnv``; the reward replaced by ``reward`` (one of
+    :data:`baselines.rewards.REWARDS`; ``"dense"`` keeps the env's own) under the monitor,
+    so that the logged returns are the rewards trained on; frame-stacked when ``n_stack > 1``."""
     from stable_baselines3.common.vec_env import DummyVecEnv, VecFrameStack, VecMonitor
 
+    from .rewards import reward_wrapper
+
+    wrapper = reward_wrapper(reward)  # checks the name before anything is built
     adapter = None
     try:
         from hyst_gym.envs import sb3 as envs_sb3  # the envs layer's adapter, when present
@@ -92,6 +97,8 @@ def make_sb3_vec_env(spec: EpisodeSpec, n_envs: int, seed: int, n_stack: int = 1
     else:
         venv = DummyVecEnv([lambda: spec.make() for _ in range(n_envs)])
         venv.seed(seed)
+    if wrapper is not None:
+        venv = wrapper(venv)
     venv = VecMonitor(venv)
     if n_stack > 1:
         venv = VecFrameStack(venv, n_stack)

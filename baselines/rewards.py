@@ -132,4 +132,18 @@ class BandRewardVecEnv(VecEnvWrapper):
         return observations, -outside.astype(np.float32), dones, infos
 
 
-__all__ = ["DEFAULT_SLOPE_SCALE", "information_increment", "InformationRewardVecEnv", "BandRewardVecEnv"]
+#: training rewards by name; "dense" is the environment's own
+REWARDS = ("dense", "information", "band")
+
+
+def reward_wrapper(name: str):
+    """The ``VecEnv`` wrapper class of reward ``name`` (``None`` for the env's own dense reward)."""
+    wrappers = {"dense": None, "information": InformationRewardVecEnv, "band": BandRewardVecEnv}
+    try:
+        return wrappers[name]
+    except KeyError:
+        raise ValueError(f"unknown reward {name!r}; expected one of {REWARDS}") from None
+
+
+__all__ = ["DEFAULT_SLOPE_SCALE", "REWARDS", "information_increment", "reward_wrapper", "InformationRewardVecEnv",
+           "BandRewardVecEnv"]

@@ -1,11 +1,19 @@
-"""RL excitation policies (PPO, SAC from Stable-Baselines3) behind the common agent interface.
+"""RL excitation policies (PPO, SAC from Stable-Baselines3; RecurrentPPO from sb3-contrib)
+behind the common agent interface.
 
-History: hysteresis is not Markov in (H, y), so the policy sees the last ``n_stack``
-observations (SB3's ``VecFrameStack``: zeros after a reset, newest frame last).
-:class:`PolicyAgent` rebuilds exactly that stack from raw observations, so a trained
-model is evaluated through the same interface and on the same envs as every baseline.
-A recurrent policy (sb3-contrib's RecurrentPPO) is not used: sb3-contrib is not a
-dependency of this project.
+History: hysteresis is not Markov in (H, y), so the policy needs the past. Two ways are
+offered, to be compared by the benchmark:
+
+* frame stacking (``ppo``, ``sac``): the policy sees the last ``n_stack`` observations
+  (SB3's ``VecFrameStack``: zeros after a reset, newest frame last). :class:`PolicyAgent`
+  rebuilds exactly that stack from raw observations;
+* a recurrent policy (``recurrent_ppo``: sb3-contrib's RecurrentPPO with an LSTM): the
+  policy sees one raw observation per step (``n_stack`` is 1) and carries an LSTM state.
+  :class:`PolicyAgent` keeps that state per sub-environment and zeroes it where an
+  episode starts, as RecurrentPPO does in training.
+
+Either way a trained model is evaluated through the same interface and on the same envs
+as every baseline.
 """
 
 from __future__ import annotations
@@ -17,25 +25,49 @@ import numpy as np
 
 from .agents import Agent
 
-ALGORITHMS = ("ppo", "sac")
+ALGORITHMS = ("ppo", "sac", "recurrent_ppo")
+
+#: algorithms whose policy carries a recurrent state (and therefore sees no frame stack)
+RECURRENT_ALGORITHMS = ("recurrent_ppo",)
 
 
 def algorithm_class(algo: str):
+    algo = str(algo).lower()
+    if algo not in ALGORITHMS:
+        raise ValueError(f"unknown algorithm {algo!r}; expected one of {ALGORITHMS}")
+    if algo == "recurrent_ppo":
+        from sb3_contrib import RecurrentPPO  # imported only when asked: an optional part of the rl extra
+
+        return RecurrentPPO
     from stable_baselines3 import PPO, SAC
 
-    try:
-        return {"ppo": PPO, "sac": SAC}[algo.lower()]
-    except KeyError:
-        raise ValueError(f"unknown algorithm {algo!r}; expected one of {ALGORITHMS}") from None
+    return {"ppo": PPO, "sac": SAC}[algo]
+
+
+def is_recurrent(model) -> bool:
+    """Whether ``model``'s policy carries an LSTM state (sb3-contrib's recurrent policies)."""
+    return getattr(model.policy, "lstm_hidden_state_shape", None) is not None
 
 
 class PolicyAgent(Agent):
-    """A trained SB3 model playing on raw (unstacked) observations."""
+    """A trained SB3 / sb3-contrib model playing on raw (unstacked) observations.
+
+    Feed-forward models see a rebuilt frame stack of ``n_stack`` observations; recurrent
+    models (``n_stack`` must be 1) see the raw observation and an LSTM state kept per
+    sub-environment, zeroed by ``episode_start`` (that sub-environment only) and by
+    :meth:`reset` (all of them).
+    """
 
     def __init__(self, model, n_stack: int = 1, deterministic: bool = True, name: str = "policy"):
         super().__init__()
         self.model, self.n_stack, self.deterministic, self.name = model, int(n_stack), deterministic, name
+        self.recurrent = is_recurrent(model)
+        if self.n_stack < 1:
+            raise ValueError(f"n_stack must be >= 1, got {n_stack}")
+        if self.recurrent and self.n_stack != 1:
+            raise ValueError(f"n_stack must be 1 for a recurrent policy (it keeps its own history), got {n_stack}")
         self._stack = None
+        self._lstm_state = None  # (hidden, cell), each (n_layers, n_envs, hidden_size), or None: zeros
 
     @classmethod
     def load(cls, path, name=None, device="cpu"):
@@ -46,17 +78,21 @@ class PolicyAgent(Agent):
             raise OSError(f"no trained model at {model_path}")
         config_path = model_path.parent / "config.json"
         config = json.loads(config_path.read_text()) if config_path.exists() else {}
-        algo = config.get("algo") or ("sac" if "sac" in model_path.name.lower() else "ppo")
+        guessed = next((a for a in ("recurrent_ppo", "sac") if a in model_path.name.lower()), "ppo")
+        algo = config.get("algo") or guessed
         model = algorithm_class(algo).load(model_path, device=device)
         return cls(model, config.get("n_stack", 1), name=name or algo)
 
     def reset(self, seed=None):
         super().reset(seed)
         self._stack = None
+        self._lstm_state = None
 
     def act_batch(self, observations, episode_start):
         observations = np.asarray(observations, dtype=np.float32)
         n, size = observations.shape
+        if self.recurrent:
+            return self._act_recurrent(observations, np.asarray(episode_start, dtype=bool).reshape(n))
         if self._stack is None or self._stack.shape[0] != n:
             self._stack = np.zeros((n, size * self.n_stack), dtype=np.float32)
         self._stack[np.asarray(episode_start, dtype=bool)] = 0.0
@@ -65,5 +101,16 @@ class PolicyAgent(Agent):
         actions, _ = self.model.predict(self._stack, deterministic=self.deterministic)
         return np.asarray(actions, dtype=np.float32).reshape(n, -1)
 
+    def _act_recurrent(self, observations, episode_start):
+        n = observations.shape[0]
+        if self._lstm_state is None or self._lstm_state[0].shape[1] != n:
+            # a new batch of sub-envs: every one starts from the zero state
+            self._lstm_state, episode_start = None, np.ones(n, dtype=bool)
+        # the policy zeroes the state of the sub-envs flagged in episode_start before this step
+        actions, self._lstm_state = self.model.predict(observations, state=self._lstm_state,
+                                                       episode_start=episode_start,
+                                                       deterministic=self.deterministic)
+        return np.asarray(actions, dtype=np.float32).reshape(n, -1)
 
-__all__ = ["ALGORITHMS", "algorithm_class", "PolicyAgent"]
+
+__all__ = ["ALGORITHMS", "RECURRENT_ALGORITHMS", "algorithm_class", "is_recurrent", "PolicyAgent"]

@@ -1,4 +1,5 @@
-"""``hyst-gym train``: train a PPO or SAC excitation policy (Stable-Baselines3).
+"""``hyst-gym train``: train a PPO or SAC (Stable-Baselines3) or RecurrentPPO (sb3-contrib,
+LSTM policy) excitation policy.
 
 Writes into ``--out``: ``model.zip`` and ``config.json`` beside it (every setting needed
 to rebuild the run), ``checkpoints/`` (every ``--checkpoint-every`` steps), ``tb/``
@@ -7,6 +8,9 @@ validation set, disjoint from the benchmark's held-out draws, against env steps)
 ``--resume`` continues from the newest checkpoint in ``--out`` (else ``model.zip``) up to
 ``--timesteps``; SAC also saves and reloads its replay buffer (``replay_buffer.pkl``, at the
 end of each session; checkpoints do not carry it).
+
+History: PPO and SAC see ``--n-stack`` stacked frames (default 8); RecurrentPPO sees one
+frame and keeps an LSTM state instead, so its ``--n-stack`` is 1 (the default for it).
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ import time
 import numpy as np
 
 from .environment import EpisodeSpec, make_sb3_vec_env
-from .rl import ALGORITHMS, PolicyAgent, algorithm_class
+from .rl import ALGORITHMS, RECURRENT_ALGORITHMS, PolicyAgent, algorithm_class
 from .scenarios import SCENARIOS, VALIDATION_SEEDS, scenario_spec
 
 #: Default hyperparameters (small networks: the observation is a short stacked vector).
@@ -29,7 +33,22 @@ DEFAULT_HYPERPARAMS = {
             "gae_lambda": 0.95, "ent_coef": 0.0, "policy_kwargs": {"net_arch": [64, 64]}},
     "sac": {"buffer_size": 100_000, "learning_starts": 1000, "batch_size": 256, "learning_rate": 3e-4,
             "gamma": 0.995, "train_freq": 1, "gradient_steps": 1, "policy_kwargs": {"net_arch": [64, 64]}},
+    # as PPO, with one small LSTM (64 units) before the same heads; the rollout of
+    # n_envs*n_steps steps is cut into sequences per sub-env, batch_size steps per minibatch
+    "recurrent_ppo": {"n_steps": 256, "batch_size": 256, "n_epochs": 10, "learning_rate": 3e-4, "gamma": 0.995,
+                      "gae_lambda": 0.95, "ent_coef": 0.0,
+                      "policy_kwargs": {"lstm_hidden_size": 64, "n_lstm_layers": 1, "net_arch": [64, 64]}},
 }
+
+#: policy class name per algorithm
+POLICIES = {"ppo": "MlpPolicy", "sac": "MlpPolicy", "recurrent_ppo": "MlpLstmPolicy"}
+
+#: frames of history by default: a recurrent policy keeps its own history
+DEFAULT_N_STACK = 8
+
+
+def default_n_stack(algo) -> int:
+    return 1 if algo in RECURRENT_ALGORITHMS else DEFAULT_N_STACK
 
 
 def configure_parser(parser):
@@ -41,7 +60,9 @@ def configure_parser(parser):
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--n-envs", type=int, default=8, help="parallel sub-environments (default 8)")
-    parser.add_argument("--n-stack", type=int, default=8, help="frames of history the policy sees (1 = none)")
+    parser.add_argument("--n-stack", type=int, default=None,
+                        help=f"frames of history the policy sees (1 = none; default {DEFAULT_N_STACK}, "
+                             "and 1 for recurrent_ppo, which must be 1)")
     parser.add_argument("--checkpoint-every", type=int, default=10_000, help="env steps between checkpoints")
     parser.add_argument("--eval-every", type=int, default=0, help="env steps between learning-curve points (0: off)")
     parser.add_argument("--eval-episodes", type=int, default=8)
@@ -141,22 +162,30 @@ def record_learning_point(model, out, spec, n_stack, episodes, wall_start=None):
 
 
 
-def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=8, checkpoint_every=10_000,
+def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=None, checkpoint_every=10_000,
           eval_every=0, eval_episodes=8, hyperparams=None, resume=False, progress=True, scenario=None):
-    """Train and save; returns the path of ``model.zip``. See the module docstring."""
+    """Train and save; returns the path of ``model.zip``. See the module docstring.
+
+    ``n_stack`` None means :func:`default_n_stack` (8 frames; 1 for a recurrent policy)."""
     import torch
 
+    if algo not in ALGORITHMS:
+        raise ValueError(f"--algo must be one of {ALGORITHMS}, got {algo!r}")
+    n_stack = default_n_stack(algo) if n_stack is None else n_stack
     for name, value in (("timesteps", timesteps), ("n-envs", n_envs), ("n-stack", n_stack)):
         _positive(name, value)
+    if algo in RECURRENT_ALGORITHMS and n_stack != 1:
+        raise ValueError(f"--n-stack must be 1 for {algo} (the LSTM keeps the history), got {n_stack}")
     torch.set_num_threads(1)
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
     wall_start = time.time()  # learning-curve rows report wall time since this call
     params = {**DEFAULT_HYPERPARAMS[algo], **(hyperparams or {})}
-    config = {"algo": algo, "env_id": spec.env_id, "env_kwargs": spec.env_kwargs, "dt": spec.dt,
-              "scenario": scenario, "timesteps": int(timesteps), "seed": int(seed), "n_envs": int(n_envs),
-              "n_stack": int(n_stack), "hyperparams": params, "checkpoint_every": int(checkpoint_every),
-              "eval_every": int(eval_every), "eval_episodes": int(eval_episodes)}
+    config = {"algo": algo, "policy": POLICIES[algo], "env_id": spec.env_id, "env_kwargs": spec.env_kwargs,
+              "dt": spec.dt, "scenario": scenario, "timesteps": int(timesteps), "seed": int(seed),
+              "n_envs": int(n_envs), "n_stack": int(n_stack), "hyperparams": params,
+              "checkpoint_every": int(checkpoint_every), "eval_every": int(eval_every),
+              "eval_episodes": int(eval_episodes)}
     env = make_sb3_vec_env(spec, n_envs, seed, n_stack)
     cls = algorithm_class(algo)
     checkpoint = _latest_checkpoint(out) if resume else None
@@ -170,8 +199,8 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=8, ch
     else:
         if resume:
             print(f"[train] --resume: no checkpoint in {out}, starting fresh")
-        model = cls("MlpPolicy", env, seed=int(seed), device="cpu", verbose=0, tensorboard_log=str(out / "tb"),
-                    **params)
+        model = cls(POLICIES[algo], env, seed=int(seed), device="cpu", verbose=0,
+                    tensorboard_log=str(out / "tb"), **params)
     (out / "config.json").write_text(json.dumps(config, indent=2))
     remaining = int(timesteps) - int(model.num_timesteps)
     start_wall = time.time()
@@ -191,4 +220,5 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=8, ch
     return out / "model.zip"
 
 
-__all__ = ["DEFAULT_HYPERPARAMS", "configure_parser", "main", "train", "record_learning_point"]
+__all__ = ["DEFAULT_HYPERPARAMS", "POLICIES", "DEFAULT_N_STACK", "default_n_stack", "configure_parser", "main",
+           "train", "record_learning_point"]

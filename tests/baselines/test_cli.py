@@ -42,3 +42,23 @@ def test_bad_input_is_one_line_error(tmp_path, capsys):
     errors = capsys.readouterr().err.strip().splitlines()
     assert len(errors) == 3 and all(line.startswith("hyst-gym ") and "error:" in line for line in errors)
     assert "--timesteps must be > 0" in errors[0] and "no_such_agent" in errors[1]
+
+
+def test_train_recurrent_ppo_from_cli(tmp_path, capsys):
+    out = tmp_path / "rppo"
+    args = ["train", "--algo", "recurrent_ppo", "--timesteps", "64", "--n-envs", "2", "--out", str(out),
+            "--checkpoint-every", "0", "--hyperparams", '{"n_steps": 32, "batch_size": 32}', "--no-progress"]
+    assert main(args) == 0
+    config = json.loads((out / "config.json").read_text())
+    assert config["algo"] == "recurrent_ppo" and config["policy"] == "MlpLstmPolicy"
+    assert config["n_stack"] == 1 and config["trained_steps"] == 64  # no frame stack by default
+    assert config["hyperparams"]["n_steps"] == 32 and config["hyperparams"]["n_epochs"] == 10
+
+    assert main(["evaluate", "--agent", str(out), "--episodes", "1", "--out", str(tmp_path / "eval")]) == 0
+    with (tmp_path / "eval" / "episodes.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 1 and float(rows[0]["rms_error"]) > 0
+
+    assert main(args[:-1] + ["--n-stack", "4", "--out", str(tmp_path / "bad"), "--no-progress"]) == 2
+    error = capsys.readouterr().err.strip().splitlines()
+    assert len(error) == 1 and "--n-stack must be 1 for recurrent_ppo" in error[0]

@@ -26,3 +26,121 @@ def test_policy_agent_frame_stack_matches_vecframestack():
         stacked, _, dones, infos = venv.step(expected)
         raw_obs = stacked[:, -3:]
         episode_start = dones
+
+
+# --- recurrent policy (sb3-contrib RecurrentPPO): the LSTM state is the history ---------------
+
+def _untrained_recurrent_model():
+    """An untrained RecurrentPPO on Pendulum (3-D observation): its LSTM is random but real."""
+    import gymnasium
+    from sb3_contrib import RecurrentPPO
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    venv = DummyVecEnv([lambda: gymnasium.make("Pendulum-v1")])
+    return RecurrentPPO("MlpLstmPolicy", venv, n_steps=16, batch_size=16, seed=0, device="cpu",
+                        policy_kwargs={"lstm_hidden_size": 8, "net_arch": [8]})
+
+
+def _observations(steps, n, seed=0):
+    return np.random.default_rng(seed).uniform(-1.0, 1.0, size=(steps, n, 3)).astype(np.float32)
+
+
+def _play(agent, observations, starts):
+    agent.reset()
+    return np.stack([agent.predict(obs, episode_start=start, deterministic=True)[0]
+                     for obs, start in zip(observations, starts)])
+
+
+def test_recurrent_agent_is_deterministic_and_history_dependent():
+    from baselines.rl import PolicyAgent
+
+    agent = PolicyAgent(_untrained_recurrent_model())
+    assert agent.recurrent
+    observations = _observations(12, 1)
+    starts = [np.array([i == 0]) for i in range(12)]
+    first, second = _play(agent, observations, starts), _play(agent, observations, starts)
+    np.testing.assert_array_equal(first, second)  # reset() clears the LSTM state
+    agent.reset()  # ... even when the caller flags no episode start
+    no_flags = np.stack([agent.act_batch(obs, np.zeros(1, dtype=bool)) for obs in observations])
+    np.testing.assert_array_equal(no_flags, first)
+
+    # the same observation after two different histories: the LSTM state makes the action differ
+    repeated = observations.copy()
+    repeated[:, 0] = observations[-1, 0]  # constant input: a different history for the last frame
+    other = _play(agent, repeated, starts)
+    np.testing.assert_array_equal(repeated[-1], observations[-1])
+    assert np.abs(other[-1] - first[-1]).max() > 1e-6
+
+    # and it matches RecurrentPPO's own predict loop with the state threaded by hand
+    state, expected = None, []
+    for obs, start in zip(observations, starts):
+        action, state = agent.model.predict(obs, state=state, episode_start=start, deterministic=True)
+        expected.append(action)
+    np.testing.assert_allclose(first, np.stack(expected), rtol=1e-6)
+
+
+def test_recurrent_episode_start_resets_only_that_sub_env():
+    from baselines.rl import PolicyAgent
+
+    agent = PolicyAgent(_untrained_recurrent_model())
+    steps, restart = 10, 6
+    observations = _observations(steps, 2, seed=1)
+    starts = [np.array([i == 0, i in (0, restart)]) for i in range(steps)]
+    batch = _play(agent, observations, starts)
+
+    single = PolicyAgent(_untrained_recurrent_model())
+    untouched = _play(single, observations[:, :1], [np.array([i == 0]) for i in range(steps)])
+    restarted = _play(single, observations[restart:, 1:], [np.array([i == 0]) for i in range(steps - restart)])
+    np.testing.assert_allclose(batch[:, :1], untouched, rtol=1e-6)  # sub-env 0 kept its state
+    np.testing.assert_allclose(batch[restart:, 1:], restarted, rtol=1e-6)  # sub-env 1 began afresh
+    continued = _play(single, observations[:, 1:], [np.array([i == 0]) for i in range(steps)])
+    assert np.abs(continued[restart:] - restarted).max() > 1e-6  # so the restart did change something
+
+
+def test_recurrent_agent_rejects_frame_stack():
+    import pytest
+
+    from baselines.rl import PolicyAgent
+
+    with pytest.raises(ValueError, match="n_stack must be 1"):
+        PolicyAgent(_untrained_recurrent_model(), n_stack=4)
+
+
+def test_train_recurrent_ppo_saves_loads_and_resumes(tmp_path):
+    import json
+
+    import pytest
+
+    from baselines.evaluation import run_episodes
+    from baselines.rl import PolicyAgent
+    from baselines.scenarios import scenario_spec
+    from baselines.train import train
+
+    spec = scenario_spec("paper")
+    small = {"n_steps": 32, "batch_size": 32}
+    out = tmp_path / "rppo"
+    path = train("recurrent_ppo", spec, 128, 0, out, n_envs=2, checkpoint_every=64, eval_every=128,
+                 eval_episodes=1, hyperparams=small, progress=False)
+    assert path == out / "model.zip" and path.exists()
+    config = json.loads((out / "config.json").read_text())
+    assert config["algo"] == "recurrent_ppo" and config["policy"] == "MlpLstmPolicy"
+    assert config["n_stack"] == 1 and config["trained_steps"] == 128
+    assert config["hyperparams"]["policy_kwargs"]["lstm_hidden_size"] == 64
+    assert sorted(p.name for p in (out / "checkpoints").iterdir()) == ["model_128_steps.zip", "model_64_steps.zip"]
+    assert len((out / "learning_curve.csv").read_text().strip().splitlines()) == 2  # header + one point
+
+    agent = PolicyAgent.load(out)
+    assert agent.recurrent and agent.name == "recurrent_ppo"
+    assert type(agent.model).__name__ == "RecurrentPPO"
+    records, _ = run_episodes(agent, spec, [7])
+    assert records[0]["steps"] == 1000 and np.isfinite(records[0]["rms_error"])
+    actions, _ = agent.predict(np.zeros((3, agent.model.observation_space.shape[0])), deterministic=True)
+    space = agent.model.action_space
+    assert actions.shape == (3, *space.shape) and np.all((actions >= space.low) & (actions <= space.high))
+
+    train("recurrent_ppo", spec, 192, 0, out, n_envs=2, checkpoint_every=0, hyperparams=small,
+          resume=True, progress=False)
+    assert json.loads((out / "config.json").read_text())["trained_steps"] == 192
+
+    with pytest.raises(ValueError, match="--n-stack must be 1"):
+        train("recurrent_ppo", spec, 64, 0, tmp_path / "bad", n_envs=2, n_stack=8, progress=False)
