@@ -11,7 +11,7 @@ Every agent has ``reset(seed)``, ``act(observation) -> action`` and SB3's
 * :mod:`baselines.greedy` -- receding-horizon information-maximizing input;
 * :mod:`baselines.estimator_agents` -- min-max / gradient / multiple-model estimators as
   agents of ``Estimation-v0``;
-* :mod:`baselines.rl` -- trained PPO/SAC policies with frame stacking;
+* :mod:`baselines.rl` -- trained PPO/SAC policies with frame stacking, RecurrentPPO with an LSTM;
 * :mod:`baselines.registry` -- any of them by name; :mod:`baselines.scenarios` -- the
   benchmark's scenarios and seed sets; :mod:`baselines.evaluation` -- the metrics;
 * ``hyst-gym train`` (:mod:`baselines.train`) and ``hyst-gym evaluate`` (:mod:`baselines.evaluate`).

@@ -3,9 +3,10 @@
     python -m experiments.ablation_reward [--timesteps 50000] [--seeds 10] [--workers 2]
                                           [--arms dense,information,band] [--force]
 
-Both arms are the committed ``ppo_stack8`` configuration in the ``paper`` scenario (PPO,
+Every arm is the committed ``ppo_stack8`` configuration in the ``paper`` scenario (PPO,
 8 stacked frames, :data:`baselines.train.DEFAULT_HYPERPARAMS`, 8 sub-envs, training seeds
-0..k-1) trained by the same :func:`baselines.train.train`; they differ only in the reward:
+0..k-1) trained by the same :func:`baselines.train.train`; they differ only in its
+``reward`` argument:
 
 * ``dense`` -- the environment's own ``-|a_estimate - a_true|/width(Theta)`` (uses the truth);
 * ``information`` -- :class:`baselines.rewards.InformationRewardVecEnv`, the per-step
@@ -13,7 +14,7 @@ Both arms are the committed ``ppo_stack8`` configuration in the ``paper`` scenar
 * ``band`` -- :class:`baselines.rewards.BandRewardVecEnv`, -1 per step outside the 0.1 %
   settle band: the benchmark's metric itself as the reward (uses the truth).
 
-Both arms are (re)trained here at the same budget so that they share the code and the
+All arms are (re)trained here at the same budget so that they share the code and the
 environment version, then evaluated by :func:`baselines.evaluation.run_episodes` on the
 benchmark's 50 held-out draws (:data:`baselines.scenarios.HELDOUT_SEEDS`).
 
@@ -51,22 +52,6 @@ METRICS = ("settle_time_s", "integrated_error", "rms_error", "final_error")
 EVAL_EVERY, EVAL_EPISODES = 5_000, 4  # as the committed full profile's learning curves
 
 
-def _reward_env_builder(wrapper):
-    """:func:`baselines.environment.make_sb3_vec_env` with ``wrapper``'s reward under the monitor."""
-
-    def build(spec, n_envs, seed, n_stack=1):
-        from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor
-
-        from hyst_gym.envs.sb3 import make_sb3_vec_env
-
-        venv = make_sb3_vec_env(spec.env_id, num_envs=n_envs, seed=seed, max_episode_steps=spec.max_episode_steps,
-                                **spec.env_kwargs)
-        venv = VecMonitor(wrapper(venv))
-        return VecFrameStack(venv, n_stack) if n_stack > 1 else venv
-
-    return build
-
-
 def train_and_evaluate(arm: str, seed: int, timesteps: int, raw: str) -> dict:
     """Train one (arm, seed) run and evaluate it on the held-out draws (any process)."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -77,34 +62,23 @@ def train_and_evaluate(arm: str, seed: int, timesteps: int, raw: str) -> dict:
     from baselines.scenarios import HELDOUT_SEEDS, SCENARIOS
     from experiments.config import RL_CONFIGS
 
-    algo, n_stack, extra = RL_CONFIGS[CONFIG]
+    config = RL_CONFIGS[CONFIG]
     scenario = SCENARIOS[SCENARIO]
     folder = pathlib.Path(raw) / "train" / arm / f"seed{seed}"
     start = time.time()
-    from baselines.rewards import BandRewardVecEnv, InformationRewardVecEnv
-
-    original = training.make_sb3_vec_env
-    wrapper = {"information": InformationRewardVecEnv, "band": BandRewardVecEnv}.get(arm)
-    if wrapper is not None:
-        # same train() code path; only its env builder is swapped, for this call only
-        training.make_sb3_vec_env = _reward_env_builder(wrapper)
-    try:
-        training.train(algo, scenario.spec(), timesteps, seed, folder, n_envs=8, n_stack=n_stack,
-                       checkpoint_every=0, eval_every=EVAL_EVERY, eval_episodes=EVAL_EPISODES,
-                       hyperparams=dict(extra), resume=False, progress=False, scenario=SCENARIO)
-    finally:
-        training.make_sb3_vec_env = original
+    training.train(config.algo, scenario.spec(), timesteps, seed, folder, n_envs=8, n_stack=config.n_stack,
+                   checkpoint_every=0, eval_every=EVAL_EVERY, eval_episodes=EVAL_EPISODES,
+                   hyperparams=dict(config.hyperparams), resume=False, progress=False, scenario=SCENARIO,
+                   reward=arm)
     train_wall = time.time() - start
     shutil.rmtree(folder / "tb", ignore_errors=True)
     shutil.rmtree(folder / "checkpoints", ignore_errors=True)
-    config = json.loads((folder / "config.json").read_text())
-    config["reward"] = arm
-    (folder / "config.json").write_text(json.dumps(config, indent=2))
+    saved = json.loads((folder / "config.json").read_text())
     agent = PolicyAgent.load(folder, name=f"{CONFIG}_{arm}")
     records, _ = run_episodes(agent, scenario.spec(), HELDOUT_SEEDS)
     write_episodes_csv(pathlib.Path(raw) / "eval" / arm / f"run{seed}.csv", records,
                        {"scenario": SCENARIO, "agent": f"{CONFIG}_{arm}", "run": seed, "reward": arm})
-    return {"arm": arm, "seed": seed, "env_steps": int(config["trained_steps"]), "train_wall_s": round(train_wall, 1),
+    return {"arm": arm, "seed": seed, "env_steps": int(saved["trained_steps"]), "train_wall_s": round(train_wall, 1),
             "wall_s": round(time.time() - start, 1)}
 
 

@@ -449,26 +449,31 @@ def markdown_targets(tgt):
     return lines
 
 
-#: history ablation (issue 5, "Ablations"): the frame-stacked main config against these
-HISTORY_ALTERNATIVES = {"ppo_stack1": "no history, 1 frame", "ppo_lstm": "recurrent: sb3-contrib RecurrentPPO, LSTM"}
+#: history ablation (issue 5, "Ablations"): alternative -> (its frame-stacked reference, which
+#: shares its algorithm, reward and budget; what the alternative is)
+HISTORY_ALTERNATIVES = {
+    "ppo_stack1": ("ppo_stack8", "no history, 1 frame"),
+    "ppo_lstm": ("ppo_stack8", "recurrent: sb3-contrib RecurrentPPO, LSTM"),
+    "ppo_lstm_info": ("ppo_info_stack8", "recurrent, information reward"),
+}
 
 
 def history_ablation(table, summary):
     """Frame stacking (8 frames) against no history and against a recurrent policy, PPO, paper
-    scenario: ``{alternative: {metric: {...}}}`` for the alternatives that were run."""
+    scenario: ``{alternative: {metric: {"reference", "stack8", "other", ...}}}`` for the
+    alternatives run beside their reference."""
     paper = table.get("paper", {})
-    if "ppo_stack8" not in paper:
-        return {}
     out = {}
-    episode_s = _episode_s(paper["ppo_stack8"])
-    for other in HISTORY_ALTERNATIVES:
-        if other not in paper:
+    for other, (reference, _) in HISTORY_ALTERNATIVES.items():
+        if other not in paper or reference not in paper:
             continue
+        episode_s = _episode_s(paper[reference])
         for metric in ("settle_time_s", "rms_error"):
-            x = score_matrix(paper["ppo_stack8"], metric, episode_s)
+            x = score_matrix(paper[reference], metric, episode_s)
             y = score_matrix(paper[other], metric, episode_s)
             out.setdefault(other, {})[metric] = {
-                "stack8": summary["paper"]["ppo_stack8"][metric], "other": summary["paper"][other][metric],
+                "reference": reference, "stack8": summary["paper"][reference][metric],
+                "other": summary["paper"][other][metric],
                 "probability_stack8_better": probability_of_improvement(x, y),
                 "ci95": list(probability_of_improvement_ci(x, y, n_boot=500))}
     return out
@@ -498,8 +503,8 @@ def markdown_ablation(ablation):
     lines = []
     for other, metrics in ablation.items():
         for metric, entry in metrics.items():
-            lines.append(f"- History, {metric}: `ppo_stack8` (8 stacked frames) {_fmt(entry['stack8'])} vs `{other}` "
-                         f"({HISTORY_ALTERNATIVES[other]}) {_fmt(entry['other'])}; P(stack8 better) = "
+            lines.append(f"- History, {metric}: `{entry['reference']}` (8 stacked frames) {_fmt(entry['stack8'])} vs "
+                         f"`{other}` ({HISTORY_ALTERNATIVES[other][1]}) {_fmt(entry['other'])}; P(stack8 better) = "
                          f"{entry['probability_stack8_better']:.2f} [{entry['ci95'][0]:.2f}, {entry['ci95'][1]:.2f}].")
     if "ppo_lstm" not in ablation:
         lines.append("- A recurrent policy (`ppo_lstm`, sb3-contrib RecurrentPPO) is declared but has no results in "
@@ -612,7 +617,7 @@ def write_report(results=DEFAULT_RESULTS, readme=None, n_boot=2000):
             make(figures / name)
             if (figures / name).exists():
                 made.append(name)
-        agents = [a for a in ("ramp", "optimal_design", "greedy_info", "ppo_stack8", "sac_stack8")
+        agents = [a for a in ("ramp", "optimal_design", "greedy_info", "ppo_stack8", "ppo_info_stack8", "sac_stack8")
                   if a in table[scenario]]
         figure_traces(raw, table, scenario, agents, figures / f"traces_{scenario}.png")
         if (figures / f"traces_{scenario}.png").exists():
@@ -627,9 +632,11 @@ def write_report(results=DEFAULT_RESULTS, readme=None, n_boot=2000):
              "that an RL run beats the best non-RL excitation baseline on the same draw. The estimator agents "
              "(`minmax`, `gradient`, `multiple_model`) run on `Estimation-v0` under the environment's ramp (the "
              "paper's input), so they compare estimators, not inputs; every other agent drives `Excitation-v0` "
-             "with the min-max estimator inside. RL configs: `<algo>_stack<k>` = the policy sees the last k "
-             "observations (frame stacking); `ppo`/`sac` in summary.json are the declared main configs "
-             "`ppo_stack8`/`sac_stack8`.", "",
+             "with the min-max estimator inside. RL configs (`experiments/config.py`): `<algo>_stack<k>` = the "
+             "policy sees the last k observations (frame stacking); `ppo_lstm` = RecurrentPPO, one observation and "
+             "an LSTM state; `ppo_info_stack8` = trained on the information increment instead of the dense error; "
+             "`ppo`/`sac` in summary.json are the declared main configs `ppo_stack8`/`sac_stack8`; the targets use "
+             "the best RL config, chosen on these same held-out draws.", "",
              "## Targets", ""] + markdown_targets(tgt) + [""] + markdown_budget(budget, compute["sessions"]) + \
         ["", "## Ablations", ""] + markdown_ablation(ablation) + \
         ["", "## Tables", ""] + \
@@ -656,7 +663,9 @@ def readme_section(tgt, summary, compute, ablation=None, budget_lines=()):
              "random schedules; a CMA-ES optimal design maximizing Fisher information about a (nominal and "
              "prior-averaged); a receding-horizon information-maximizing input; the min-max, gradient and "
              "multiple-model estimators as agents on `Estimation-v0`; PPO and SAC (Stable-Baselines3) with frame "
-             "stacking on `Excitation-v0`. All share the same field/slew limits and the same 50 held-out draws.", "",
+             "stacking and RecurrentPPO (sb3-contrib, LSTM) on `Excitation-v0`, trained on the dense error reward "
+             "or (`ppo_info_stack8`) on the Fisher-information increment, which uses no truth. All share the same "
+             "field/slew limits and the same 50 held-out draws.", "",
              "```bash", ".venv/bin/python -m experiments.run --workers 2      # raw results -> experiments/results/raw",
              ".venv/bin/python -m experiments.report --readme README.md  # tables, figures, summary.json, this section",
              ".venv/bin/hyst-gym train --algo ppo --env hyst_gym/Excitation-v0 --timesteps 50000 --seed 0 --out runs/ppo0",
@@ -673,7 +682,7 @@ def readme_section(tgt, summary, compute, ablation=None, budget_lines=()):
                                             if agent in summary.get(scenario, {}) else "")
     for agent in ("ramp", "ramp_tuned", "sine", "chirp", "prbs", "multisine", "random", "optimal_design",
                   "optimal_design_prior", "greedy_info", "minmax", "gradient", "multiple_model", "ppo", "ppo_stack1",
-                  "sac"):
+                  "ppo_lstm", "ppo_info_stack8", "sac"):
         if any(agent in summary.get(s, {}) for s in ("paper", "drift", "lumped")):
             lines.append(f"| {agent} | {cell('paper', agent, 'settle_time_s')} | {cell('paper', agent, 'rms_error')} | "
                          f"{cell('drift', agent, 'rms_error')} | {cell('lumped', agent, 'settle_time_s')} |")

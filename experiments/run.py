@@ -38,6 +38,8 @@ import numpy as np
 from .config import RL_CONFIGS, SCENARIO_NAMES, Job, declared_jobs
 
 DEFAULT_RESULTS = pathlib.Path(__file__).resolve().parent / "results"
+#: seconds an evaluation may predate its model and still count as current (see is_done)
+CHECKOUT_SLACK_S = 5.0
 
 
 def _output_path(job: Job, raw: pathlib.Path) -> pathlib.Path:
@@ -60,7 +62,9 @@ def is_done(job: Job, raw: pathlib.Path) -> bool:
     if job.kind == "eval" and job.agent in RL_CONFIGS:
         scenario = _scenario(job)
         model = raw / "train" / scenario.source / job.agent / f"seed{job.run}" / "model.zip"
-        return model.exists() and out.stat().st_mtime >= model.stat().st_mtime
+        # a git checkout writes both files in the same second in either order; a real
+        # retraining makes the model newer than its old evaluation by far more than that
+        return model.exists() and out.stat().st_mtime >= model.stat().st_mtime - CHECKOUT_SLACK_S
     return True
 
 
@@ -134,18 +138,35 @@ def _design(job, raw, out):
 
 
 def _train(job, raw, out):
-    from baselines.train import train
+    from baselines.train import DEFAULT_HYPERPARAMS, train
 
-    algo, n_stack, extra = RL_CONFIGS[job.agent]
+    config = RL_CONFIGS[job.agent]
     scenario = _scenario(job)
     folder = out.parent
     timesteps = job.option("timesteps")
-    train(algo, scenario.spec(), timesteps, job.run, folder, n_envs=8, n_stack=n_stack,
+    hyperparams = dict(config.hyperparams)
+    _check_resumable(folder, config, {**DEFAULT_HYPERPARAMS[config.algo], **hyperparams})
+    train(config.algo, scenario.spec(), timesteps, job.run, folder, n_envs=8, n_stack=config.n_stack,
           checkpoint_every=max(timesteps // 2, 1), eval_every=job.option("eval_every", 0),
-          eval_episodes=job.option("eval_episodes", 8), hyperparams=dict(extra), resume=True,
-          progress=False, scenario=job.scenario)
+          eval_episodes=job.option("eval_episodes", 8), hyperparams=hyperparams, resume=True,
+          progress=False, scenario=job.scenario, reward=config.reward)
     shutil.rmtree(folder / "checkpoints", ignore_errors=True)  # model.zip is the final state
     return timesteps
+
+
+def _check_resumable(folder, config, hyperparams):
+    """A run is resumed only under the settings it was started with: a changed algorithm,
+    history, reward or hyperparameter would otherwise continue silently from the old model."""
+    path = folder / "config.json"
+    if not path.exists():
+        return
+    saved = json.loads(path.read_text())
+    now = {"algo": config.algo, "n_stack": config.n_stack, "reward": config.reward,
+           "hyperparams": json.loads(json.dumps(hyperparams))}
+    changed = [key for key, value in now.items() if saved.get(key, "dense" if key == "reward" else None) != value]
+    if changed:
+        raise ValueError(f"{path}: the run was started with other settings ({', '.join(changed)}); "
+                         "move the folder away to retrain it")
 
 
 def _evaluate(job, raw, out):

@@ -21,12 +21,14 @@ SUBCOMMANDS = {
     "demo": ("experiments.demo", "run the end-to-end demo (paper example, baselines, PPO, figures)"),
     "bench": ("hyst_gym.bench", "measure kernel, estimator and environment speed"),
     "reproduce": ("experiments.reproduce_paper", "reproduce the paper's numerical examples (Figs. 8-11)"),
-    "train": ("baselines.train", "train a PPO or SAC excitation policy"),
+    "train": ("baselines.train", "train a PPO, SAC or RecurrentPPO excitation policy"),
     "evaluate": ("baselines.evaluate", "evaluate an agent, write per-episode CSV"),
     "diagnose": ("hyst_gym.diagnose.command", "find which physics a recording shows that the model lacks"),
     "make-recording": ("hyst_gym.diagnose.make_recording", "write a synthetic recording with a concealed effect"),
 }
 
+#: top-level modules of the optional ``rl`` extra
+OPTIONAL_RL_MODULES = ("stable_baselines3", "sb3_contrib", "torch")
 
 
 def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
@@ -45,6 +47,9 @@ def _load(module_name: str):
     except ModuleNotFoundError as error:
         if error.name and module_name.startswith(error.name):
             raise SystemExit(f"hyst-gym: this subcommand is not available ({module_name} is missing)")
+        if error.name in OPTIONAL_RL_MODULES:
+            raise SystemExit(f"hyst-gym: this subcommand needs {error.name}; install the RL extra: "
+                             "pip install 'hyst-gym[rl]'")
         raise
 
 
@@ -59,6 +64,12 @@ def main(argv=None) -> int:
     module = _load(SUBCOMMANDS[args.command][0])
     try:
         return int(module.main(args) or 0)
+    except ModuleNotFoundError as error:
+        if error.name not in OPTIONAL_RL_MODULES:
+            raise
+        print(f"hyst-gym {args.command}: error: needs {error.name}; install the RL extra: pip install 'hyst-gym[rl]'",
+              file=sys.stderr)
+        return 2
     except (ValueError, OSError, KeyError) as error:
         if os.environ.get("HYST_GYM_DEBUG"):
             raise

@@ -14,7 +14,7 @@ def test_train_resume_and_evaluate(tmp_path, capsys):
             "--eval-episodes", "1", "--no-progress"]
     assert main(args) == 0
     config = json.loads((out / "config.json").read_text())
-    assert config["algo"] == "ppo" and config["seed"] == 3 and config["n_stack"] == 2
+    assert config["algo"] == "ppo" and config["seed"] == 3 and config["n_stack"] == 2 and config["reward"] == "dense"
     assert config["trained_steps"] == 2048 and config["env_kwargs"]["a_true"] == 7012.0
     assert sorted(p.name for p in (out / "checkpoints").iterdir()) == ["model_1024_steps.zip", "model_2048_steps.zip"]
     assert any((out / "tb").rglob("events.out.tfevents.*"))

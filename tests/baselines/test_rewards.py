@@ -90,3 +90,33 @@ def test_band_reward_counts_the_steps_outside_the_settle_band():
     assert np.all(rewards[:100] == -1.0) and np.all(rewards[-50:] == 0.0)
     with pytest.raises(ValueError, match="band_fraction"):
         BandRewardVecEnv(envs[1], band_fraction=0.0)
+
+
+def test_training_env_reward_follows_the_reward_name():
+    """make_sb3_vec_env (the env train() builds) swaps the reward under the same steps: the
+    dense error is <= 0, the information increment >= 0 and equal to the wrapper's, and the
+    observations do not depend on the reward."""
+    from baselines.environment import make_sb3_vec_env
+
+    spec = SCENARIOS["paper"].spec()
+    actions = _sweep(1.0, 40)
+    rewards, observations = {}, {}
+    for name in ("dense", "information"):
+        venv = make_sb3_vec_env(spec, 2, seed=5, n_stack=1, reward=name)
+        observations[name] = [venv.reset()]
+        rewards[name] = []
+        for action in actions:
+            obs, reward, _, _ = venv.step(np.full((2, 1), action, dtype=np.float32))
+            observations[name].append(obs)
+            rewards[name].append(reward)
+        venv.close()
+    np.testing.assert_array_equal(np.array(observations["dense"]), np.array(observations["information"]))
+    assert np.all(np.array(rewards["dense"]) <= 0) and np.all(np.array(rewards["information"]) >= 0)
+    assert np.array(rewards["information"]).max() > 0
+
+    reference = _wrapped(2, seed=5)
+    reference.reset()
+    expected = [reference.step(np.full((2, 1), action, dtype=np.float32))[1] for action in actions]
+    np.testing.assert_allclose(np.array(rewards["information"]), np.array(expected), rtol=1e-6)
+    with pytest.raises(ValueError, match="unknown reward 'bogus'"):
+        make_sb3_vec_env(spec, 1, seed=0, reward="bogus")

@@ -83,10 +83,12 @@ def test_history_ablation_covers_no_history_and_recurrent_and_targets_name_the_b
     _write_runs(raw, "paper", "ppo_stack8", 5, rng, 1.0)
     _write_runs(raw, "paper", "ppo_stack1", 5, rng, 5.0)
     lstm = _write_runs(raw, "paper", "ppo_lstm", 5, rng, 0.5)
+    _write_runs(raw, "paper", "ppo_lstm_info", 5, rng, 2.0)  # its reference ppo_info_stack8 was not run
     report.write_report(results, readme=None, n_boot=200)
     details = json.loads((results / "details.json").read_text())
     ablation = details["history_ablation"]
     assert set(ablation) == {"ppo_stack1", "ppo_lstm"}
+    assert {entry["settle_time_s"]["reference"] for entry in ablation.values()} == {"ppo_stack8"}
     entry = ablation["ppo_lstm"]["settle_time_s"]
     assert entry["other"]["iqm"] == pytest.approx(iqm(np.array([run[0] for run in lstm])))
     # stack8 (scale 1.0) beats no history (scale 5.0) and loses to the faster recurrent runs (scale 0.5)

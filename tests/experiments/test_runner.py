@@ -67,7 +67,7 @@ def test_ray_local_cluster_runs_the_same_jobs_as_local(tmp_path):
 def test_declared_full_profile_meets_the_protocol():
     stages = declared_jobs("full")
     jobs = [j for stage in stages for j in stage]
-    for config in ("ppo_stack8", "ppo_stack1", "sac_stack8"):
+    for config in ("ppo_stack8", "ppo_stack1", "ppo_lstm", "ppo_info_stack8", "sac_stack8"):
         seeds = {j.run for j in jobs if j.kind == "train" and j.scenario == "paper" and j.agent == config}
         assert len(seeds) >= 5
     evals = [j for j in jobs if j.kind == "eval"]
@@ -83,3 +83,24 @@ def test_declared_full_profile_meets_the_protocol():
         assert all(j in stages[-1] for j in evals if j.scenario == scenario and j.agent.startswith("ppo"))
     with pytest.raises(ValueError, match="unknown profile"):
         declared_jobs("huge")
+
+
+def test_rl_configs_are_trainable_and_a_changed_config_is_not_resumed(tmp_path):
+    from baselines.rewards import REWARDS
+    from baselines.rl import ALGORITHMS, RECURRENT_ALGORITHMS
+    from baselines.train import DEFAULT_HYPERPARAMS
+    from experiments.config import RL_CONFIGS
+    from experiments.run import _check_resumable
+
+    for name, config in RL_CONFIGS.items():
+        assert config.algo in ALGORITHMS and config.reward in REWARDS and config.n_stack >= 1, name
+        assert config.algo not in RECURRENT_ALGORITHMS or config.n_stack == 1, name
+        assert set(dict(config.hyperparams)) <= set(DEFAULT_HYPERPARAMS[config.algo]), name
+    config = RL_CONFIGS["ppo_stack8"]
+    params = dict(DEFAULT_HYPERPARAMS["ppo"])
+    (tmp_path / "config.json").write_text(json.dumps({"algo": "ppo", "n_stack": 8, "hyperparams": params}))
+    _check_resumable(tmp_path, config, params)  # same settings (reward absent = dense): resumable
+    with pytest.raises(ValueError, match="config.json: the run was started with other settings \\(reward\\)"):
+        _check_resumable(tmp_path, RL_CONFIGS["ppo_info_stack8"], params)
+    with pytest.raises(ValueError, match="hyperparams"):
+        _check_resumable(tmp_path, config, {**params, "batch_size": 64})
