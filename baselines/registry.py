@@ -6,7 +6,9 @@ Names (the keys of ``experiments/results/summary.json``):
   ``multisine`` (Schroeder phases), ``random`` -- the tuned ones read their grid-search
   winner from ``artifacts/tune/<scenario>/<name>.json``;
 * ``optimal_design`` (CMA-ES at the nominal a) and ``optimal_design_prior`` (averaged over
-  the temperature prior), read from ``artifacts/design/<scenario>/<name>.json``;
+  the temperature prior), and ``direct_design`` (CMA-ES on the simulated settle time or RMS
+  error itself, :mod:`baselines.direct_design`), read from
+  ``artifacts/design/<scenario>/<name>.json``;
 * ``greedy_info`` -- the receding-horizon information-maximizing input;
 * estimators as agents on ``Estimation-v0``: ``minmax``, ``gradient``, ``multiple_model``;
 * a path to a trained model (folder with ``model.zip`` + ``config.json``).
@@ -21,7 +23,7 @@ from .agents import ScheduleAgent
 from .schedules import TUNING_GRIDS, make_schedule
 
 SCHEDULE_AGENTS = ("ramp", "ramp_tuned", "sine", "chirp", "prbs", "multisine", "random")
-DESIGN_AGENTS = ("optimal_design", "optimal_design_prior")
+DESIGN_AGENTS = ("optimal_design", "optimal_design_prior", "direct_design")
 ESTIMATOR_AGENTS = ("minmax", "gradient", "multiple_model")
 ADAPTIVE_AGENTS = ("greedy_info",)
 ALL_NAMED_AGENTS = SCHEDULE_AGENTS + DESIGN_AGENTS + ADAPTIVE_AGENTS + ESTIMATOR_AGENTS
@@ -50,7 +52,12 @@ def make_agent(name: str, scenario, artifacts=None):
         if path is None or not path.exists():
             raise OSError(f"agent {name!r} needs its design: run the 'design' job first (missing {path})")
         data = json.loads(path.read_text())
-        design = MultisineDesign(tuple(data["coefficients"]), data["period"], data["field_max"])
+        if name == "direct_design":
+            from .direct_design import KnotSchedule
+
+            design = KnotSchedule(tuple(data["knots"]), data["episode_s"], data["field_max"])
+        else:
+            design = MultisineDesign(tuple(data["coefficients"]), data["period"], data["field_max"])
         return ScheduleAgent(design, scenario.limits, scenario.episode_steps, name=name)
     if name == "greedy_info":
         from .greedy import GreedyInformationAgent

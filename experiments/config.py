@@ -71,7 +71,8 @@ PROFILES = {
     # timesteps and eval_every: per algorithm, or per config name where it differs
     "full": {"rl_seeds": 5, "timesteps": {"ppo": 50_000, "sac": 50_000, "recurrent_ppo": 50_000,
                                           "ppo_info_stack8": 300_000, "ppo_lstm_info": 300_000},
-             "episodes": 50, "tuning_episodes": 3, "design_evaluations": 300, "rl_scenarios": ("paper", "drift"),
+             "episodes": 50, "tuning_episodes": 3, "design_evaluations": 300, "direct_evaluations": 400,
+             "tuning_draws_direct": 8, "rl_scenarios": ("paper", "drift"),
              "drift_timesteps": {"ppo": 50_000, "sac": 20_000, "ppo_info_stack8": 300_000},
              "eval_every": {"ppo": 5_000, "sac": 5_000, "recurrent_ppo": 5_000, "ppo_info_stack8": 25_000,
                             "ppo_lstm_info": 25_000},
@@ -79,7 +80,8 @@ PROFILES = {
                                                 "ppo_lstm_info", "sac_stack8"),
              "drift_rl_configs": ("ppo_stack8", "ppo_info_stack8"), "generalization": True},
     "smoke": {"rl_seeds": 1, "timesteps": {"ppo": 512, "sac": 300}, "episodes": 3, "tuning_episodes": 2,
-              "design_evaluations": 30, "rl_scenarios": ("paper",), "drift_timesteps": {"ppo": 512, "sac": 300},
+              "design_evaluations": 30, "direct_evaluations": 12, "tuning_draws_direct": 2,
+              "rl_scenarios": ("paper",), "drift_timesteps": {"ppo": 512, "sac": 300},
               "eval_every": {"ppo": 256, "sac": 0}, "eval_episodes": 2, "rl_configs": ("ppo_stack8",),
               "drift_rl_configs": (), "generalization": False},
 }
@@ -112,7 +114,9 @@ def declared_jobs(profile: str = "full", scenarios=SCENARIO_NAMES):
                 prep.append(Job("tune", scenario, name, 0, sizes))
             evals.append(Job("eval", scenario, name, 0, (("episodes", p["episodes"]),)))
         for name in filter(keep, DESIGN_AGENTS):
-            prep.append(Job("design", scenario, name, 0, (("evaluations", p["design_evaluations"]),)))
+            design_sizes = ((("evaluations", p["direct_evaluations"]), ("draws", p["tuning_draws_direct"]))
+                            if name == "direct_design" else (("evaluations", p["design_evaluations"]),))
+            prep.append(Job("design", scenario, name, 0, design_sizes))
             evals.append(Job("eval", scenario, name, 0, (("episodes", p["episodes"]),)))
         for name in filter(keep, ("greedy_info",) + ESTIMATOR_AGENTS):
             evals.append(Job("eval", scenario, name, 0, (("episodes", p["episodes"]),)))

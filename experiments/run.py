@@ -126,6 +126,8 @@ def _design(job, raw, out):
     from baselines.optimal_design import design_input
 
     scenario = _scenario(job)
+    if job.agent == "direct_design":
+        return _direct_design(job, scenario, out)
     a_values = scenario.prior_a if job.agent.endswith("_prior") else (scenario.nominal_a,)
     period = min(scenario.episode_s, 6.0)
     result = design_input(scenario.limits, a_values, period=period, max_evaluations=job.option("evaluations", 400),
@@ -135,6 +137,32 @@ def _design(job, raw, out):
                                "field_max": scenario.limits.field_max, "log_information": result.log_information,
                                "evaluations": result.evaluations, "history": list(result.history)}, indent=2))
     return 0
+
+
+def _direct_design(job, scenario, out):
+    """CMA-ES on the tuning criterion itself (the schedules' grid-search score, tuning draws)."""
+    from baselines.agents import ScheduleAgent
+    from baselines.direct_design import search_direct_design
+    from baselines.evaluation import run_episodes
+    from baselines.scenarios import TUNING_SEEDS
+
+    seeds = TUNING_SEEDS[:job.option("draws", 8)]
+    steps = []
+
+    def score(schedule):
+        records, _ = run_episodes(ScheduleAgent(schedule, scenario.limits, scenario.episode_steps), scenario.spec(),
+                                  seeds)
+        steps.append(sum(r["steps"] for r in records))
+        return _score(records, scenario)
+
+    result = search_direct_design(score, scenario.limits, scenario.episode_s, n_knots=job.option("knots", 16),
+                                  max_evaluations=job.option("evaluations", 400), seed=job.run)
+    out.write_text(json.dumps({"design": job.agent, "scenario": job.scenario, "seeds": list(seeds),
+                               "criterion": "iqm rms_error" if scenario.name == "drift" else "iqm settle_time_s",
+                               "knots": list(result.schedule.knots), "episode_s": result.schedule.episode_s,
+                               "field_max": result.schedule.field_max, "score": result.score,
+                               "evaluations": result.evaluations, "history": list(result.history)}, indent=2))
+    return int(sum(steps))
 
 
 def _train(job, raw, out):

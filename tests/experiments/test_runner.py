@@ -72,6 +72,9 @@ def test_declared_full_profile_meets_the_protocol():
         assert len(seeds) >= 5
     evals = [j for j in jobs if j.kind == "eval"]
     assert all(j.option("episodes") >= 50 for j in evals)
+    # the direct-search design is searched on the tuning draws of the paper and drift scenarios
+    direct = {j.scenario: j for j in jobs if j.kind == "design" and j.agent == "direct_design"}
+    assert set(direct) == {"paper", "drift"} and all(j.option("draws") >= 8 for j in direct.values())
     # every RL evaluation comes after its training stage
     train_stage = next(i for i, s in enumerate(stages) if any(j.kind == "train" for j in s))
     assert all(j.kind != "eval" or not j.agent.startswith(("ppo", "sac"))
