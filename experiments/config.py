@@ -5,8 +5,8 @@ tunes the schedules, designs the optimal inputs and trains the RL policies; stag
 evaluates every agent on the shared held-out draws (baselines run beside the training,
 RL policies after it). Profiles:
 
-* ``full`` -- the committed run (``experiments/results/``), sized for about 30-40 min on
-  2 CPU cores;
+* ``full`` -- the committed run (``experiments/results/``), 10 training seeds per RL
+  config, sized for about 1 h on 2 CPU cores;
 * ``smoke`` -- the same pipeline at toy size, for the tests and a quick check.
 """
 
@@ -69,7 +69,7 @@ RL_CONFIGS = {
 
 PROFILES = {
     # timesteps and eval_every: per algorithm, or per config name where it differs
-    "full": {"rl_seeds": 5, "timesteps": {"ppo": 50_000, "sac": 50_000, "recurrent_ppo": 50_000,
+    "full": {"rl_seeds": 10, "timesteps": {"ppo": 50_000, "sac": 50_000, "recurrent_ppo": 50_000,
                                           "ppo_info_stack8": 300_000, "ppo_lstm_info": 300_000},
              "episodes": 50, "tuning_episodes": 3, "design_evaluations": 300, "direct_evaluations": 400,
              "tuning_draws_direct": 8, "rl_scenarios": ("paper", "drift"),

@@ -543,6 +543,17 @@ def markdown_ablation(ablation):
             lines.append(f"- History, {metric}: `{entry['reference']}` (8 stacked frames) {_fmt(entry['stack8'])} vs "
                          f"`{other}` ({HISTORY_ALTERNATIVES[other][1]}) {_fmt(entry['other'])}; P(stack8 better) = "
                          f"{entry['probability_stack8_better']:.2f} [{entry['ci95'][0]:.2f}, {entry['ci95'][1]:.2f}].")
+    verdicts = []
+    for other, metrics in ablation.items():
+        entry = metrics.get("settle_time_s")
+        if entry:
+            low, high = entry["ci95"]
+            verdicts.append(f"`{entry['reference']}` over `{other}`" if low > 0.5 else
+                            f"`{other}` over `{entry['reference']}`" if high < 0.5 else
+                            f"no clear winner between `{entry['reference']}` and `{other}`")
+    if verdicts:
+        lines.append("- Which history works (settle time, by whether the interval of P(stack8 better) excludes 0.5): "
+                     + "; ".join(verdicts) + ".")
     if "ppo_lstm" not in ablation:
         lines.append("- A recurrent policy (`ppo_lstm`, sb3-contrib RecurrentPPO) is declared but has no results in "
                      "this run.")
@@ -725,8 +736,13 @@ def readme_section(tgt, summary, compute, ablation=None, budget_lines=()):
             lines.append(f"| {agent} | {cell('paper', agent, 'settle_time_s')} | {cell('paper', agent, 'rms_error')} | "
                          f"{cell('drift', agent, 'rms_error')} | {cell('drift', agent, 'tracking_rms_error')} | "
                          f"{cell('lumped', agent, 'settle_time_s')} |")
-    lines += ["", "IQM [95 % stratified-bootstrap CI] over the 50 held-out draws (x 5 training seeds for RL); "
-              "`minmax`, `gradient`, `multiple_model` are the estimators as agents under the ramp.", ""]
+    paper = summary.get("paper", {})
+    draws = paper["ramp"]["settle_time_s"]["n"] if "ramp" in paper else 50
+    seeds = sorted({v["settle_time_s"]["n"] // draws for a, v in paper.items() if _is_rl(a)})
+    lines += ["", f"IQM [95 % stratified-bootstrap CI] over the {draws} held-out draws"
+              + (f" (x {'-'.join(map(str, (seeds[0], seeds[-1]) if len(seeds) > 1 else seeds))} training seeds "
+                 "for RL)" if seeds else "")
+              + "; `minmax`, `gradient`, `multiple_model` are the estimators as agents under the ramp.", ""]
     lines += markdown_ablation(ablation or {})
     lines += ["",
               "", f"Compute: {compute['total_env_steps']:,} environment steps"
