@@ -318,14 +318,16 @@ def figure_learning_curves(raw, scenario, path):
         length = min(len(c) for c in curves)
         stack = np.stack([c[:length] for c in curves])
         steps, values = stack[0, :, 0], stack[:, :, 1]
-        ax.plot(steps, np.median(values, axis=0), label=f"{config_dir.name} (median of {len(curves)} seeds)")
-        ax.fill_between(steps, values.min(axis=0), values.max(axis=0), alpha=0.2)
+        line, = ax.plot(steps, np.median(values, axis=0), marker=".", label=f"{config_dir.name} ({len(curves)} seeds)")
+        ax.fill_between(steps, *np.percentile(values, [25, 75], axis=0), alpha=0.15, color=line.get_color())
     if not any_curve:
         plt.close(fig)
         return
+    # budgets range from 50k to 300k steps: a log axis keeps the short runs readable
+    ax.set_xscale("log")
     ax.set(xlabel="environment steps", ylabel="validation IQM " + ("RMS error (A/m)" if scenario == "drift"
                                                                     else "settle time (s)"),
-           title=f"Learning curves: {scenario}")
+           title=f"Learning curves: {scenario} (median over seeds, band: interquartile range)")
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
