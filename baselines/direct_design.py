@@ -71,8 +71,9 @@ def search_direct_design(score, limits: ExcitationLimits, episode_s: float, n_kn
 
     ``score`` maps a schedule to a float to minimize (e.g. the censored IQM settle time, s,
     over some draws); it must be deterministic for the search to be reproducible. The
-    search starts from a zero field with step size 1 (in tanh coordinates, so every knot
-    can reach the field limit), with a fixed CMA-ES seed. ``progress`` (optional) is called
+    search starts from a zero field with step size 1 in the tanh coordinates, bounded to
+    [-3, 3] (so a knot reaches up to tanh(3) = 99.5 % of ``field_max``), with a fixed
+    CMA-ES seed. ``progress`` (optional) is called
     with the number of evaluations done after each generation.
     """
     import cma

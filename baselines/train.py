@@ -4,8 +4,11 @@ LSTM policy) excitation policy.
 Writes into ``--out``: ``model.zip`` and ``config.json`` beside it (every setting needed
 to rebuild the run), ``checkpoints/`` (every ``--checkpoint-every`` steps), ``tb/``
 (TensorBoard logs) and ``learning_curve.csv`` (the convergence metrics on a fixed
-validation set, disjoint from the benchmark's held-out draws, against env steps).
-``--resume`` continues from the newest checkpoint in ``--out`` (else ``model.zip``) up to
+validation set, disjoint from the benchmark's held-out draws, against env steps; the last
+row scores the saved model).
+``--resume`` continues from the newest checkpoint in ``--out`` (else ``model.zip``), under
+the settings the run was started with (a changed algorithm, history, reward or
+hyperparameter is a one-line error), up to
 ``--timesteps``; SAC also saves and reloads its replay buffer (``replay_buffer.pkl``, at the
 end of each session; checkpoints do not carry it).
 
@@ -168,6 +171,33 @@ def record_learning_point(model, out, spec, n_stack, episodes, wall_start=None):
     return row
 
 
+def changed_settings(out, algo, n_stack, reward, hyperparams) -> list:
+    """Names of the settings that differ from the run saved in ``out/config.json`` (empty if
+    none, or if there is no saved run): a run is only continued under its own settings."""
+    path = pathlib.Path(out) / "config.json"
+    if not path.exists():
+        return []
+    saved = json.loads(path.read_text())
+    now = {"algo": algo, "n_stack": int(n_stack), "reward": reward,
+           "hyperparams": json.loads(json.dumps(hyperparams))}  # as JSON stores it (tuples -> lists)
+    defaults = {"reward": "dense"}  # runs saved before the reward was recorded used the dense one
+    return [key for key, value in now.items() if saved.get(key, defaults.get(key)) != value]
+
+
+def _drop_curve_rows_at(out: pathlib.Path, env_steps: int):
+    path = out / "learning_curve.csv"
+    if not path.exists():
+        return
+    with path.open() as handle:
+        rows = list(csv.DictReader(handle))
+    kept = [r for r in rows if int(r["env_steps"]) != env_steps]
+    if len(kept) != len(rows):
+        with path.open("w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(kept)
+
+
 def _last_curve_steps(out: pathlib.Path):
     path = out / "learning_curve.csv"
     if not path.exists():
@@ -204,11 +234,18 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=None,
               "n_envs": int(n_envs), "n_stack": int(n_stack), "hyperparams": params,
               "checkpoint_every": int(checkpoint_every), "eval_every": int(eval_every),
               "eval_episodes": int(eval_episodes)}
-    env = make_sb3_vec_env(spec, n_envs, seed, n_stack, reward=reward)
-    cls = algorithm_class(algo)
     checkpoint = _latest_checkpoint(out) if resume else None
     if resume and checkpoint is None and (out / "model.zip").exists():
         checkpoint = out / "model.zip"
+    if checkpoint is not None:
+        changed = changed_settings(out, algo, n_stack, reward, params)
+        if changed:
+            raise ValueError(f"{out / 'config.json'}: --resume under other settings ({', '.join(changed)}) than the "
+                             "run was started with; use another --out, or drop --resume to start afresh")
+    else:
+        (out / "learning_curve.csv").unlink(missing_ok=True)  # a fresh run: no rows of an earlier one
+    env = make_sb3_vec_env(spec, n_envs, seed, n_stack, reward=reward)
+    cls = algorithm_class(algo)
     if checkpoint is not None:
         model = cls.load(checkpoint, env=env, device="cpu", tensorboard_log=str(out / "tb"))
         if algo == "sac" and (out / "replay_buffer.pkl").exists():
@@ -227,8 +264,10 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=None,
                                     checkpoint_every, n_envs, progress, int(model.num_timesteps), wall_start)
         model.learn(remaining, callback=callback, reset_num_timesteps=checkpoint is None,
                     tb_log_name=f"{algo}_seed{seed}")
-    if eval_every and _last_curve_steps(out) != int(model.num_timesteps):
-        # the periodic points fall inside rollouts; the last point must score the saved model
+    if eval_every and (remaining > 0 or _last_curve_steps(out) != int(model.num_timesteps)):
+        # periodic points are taken inside a rollout (PPO) or before the gradient steps (SAC),
+        # so a point at the final step count may predate the last update: score the saved model
+        _drop_curve_rows_at(out, int(model.num_timesteps))
         record_learning_point(model, out, spec, n_stack, eval_episodes, wall_start)
     model.save(out / "model.zip")
     if algo == "sac":
@@ -242,4 +281,4 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=None,
 
 
 __all__ = ["DEFAULT_HYPERPARAMS", "POLICIES", "DEFAULT_N_STACK", "default_n_stack", "configure_parser", "main",
-           "train", "record_learning_point"]
+           "train", "record_learning_point", "changed_settings"]

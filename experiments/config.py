@@ -73,7 +73,7 @@ PROFILES = {
                                           "ppo_info_stack8": 300_000, "ppo_lstm_info": 300_000},
              "episodes": 50, "tuning_episodes": 3, "design_evaluations": 300, "direct_evaluations": 400,
              "tuning_draws_direct": 8, "rl_scenarios": ("paper", "drift"),
-             "drift_timesteps": {"ppo": 50_000, "sac": 20_000, "ppo_info_stack8": 300_000},
+             "drift_timesteps": {"ppo": 50_000, "ppo_info_stack8": 300_000},
              "eval_every": {"ppo": 5_000, "sac": 5_000, "recurrent_ppo": 5_000, "ppo_info_stack8": 25_000,
                             "ppo_lstm_info": 25_000},
              "eval_episodes": 4, "rl_configs": ("ppo_stack8", "ppo_stack1", "ppo_lstm", "ppo_info_stack8",
@@ -96,6 +96,11 @@ GENERALIZATION = {"drift_hot": ("sine", "ppo_stack8", "ppo_info_stack8"),
                   "drift_noisy": ("sine", "ppo_stack8", "ppo_info_stack8"),
                   "paper_fem": ("ramp", "sine", "optimal_design", "ppo_stack8", "ppo_info_stack8"),
                   "paper_fem_nonlinear": ("ramp", "sine", "optimal_design", "ppo_stack8")}
+
+
+def _per_config(sizes: dict, config: str, algo: str):
+    """A profile size given per config name where it differs, else per algorithm."""
+    return sizes[config] if config in sizes else sizes[algo]
 
 
 def declared_jobs(profile: str = "full", scenarios=SCENARIO_NAMES):
@@ -127,8 +132,8 @@ def declared_jobs(profile: str = "full", scenarios=SCENARIO_NAMES):
                 algo = RL_CONFIGS[config].algo
                 for seed in range(p["rl_seeds"]):
                     prep.append(Job("train", scenario, config, seed,
-                                    (("timesteps", steps.get(config, steps[algo])),
-                                     ("eval_every", p["eval_every"].get(config, p["eval_every"][algo])),
+                                    (("timesteps", _per_config(steps, config, algo)),
+                                     ("eval_every", _per_config(p["eval_every"], config, algo)),
                                      ("eval_episodes", p["eval_episodes"]))))
                     evals.append(Job("eval", scenario, config, seed, (("episodes", p["episodes"]),)))
     for scenario, agents in GENERALIZATION.items():

@@ -488,8 +488,8 @@ def markdown_targets(tgt):
     return lines
 
 
-#: history ablation (issue 5, "Ablations"): alternative -> (its frame-stacked reference, which
-#: shares its algorithm, reward and budget; what the alternative is)
+#: history ablation (issue 5, "Ablations"): alternative -> (its frame-stacked reference, with
+#: the same reward and step budget; what the alternative is)
 HISTORY_ALTERNATIVES = {
     "ppo_stack1": ("ppo_stack8", "no history, 1 frame"),
     "ppo_lstm": ("ppo_stack8", "recurrent: sb3-contrib RecurrentPPO, LSTM"),

@@ -8,7 +8,9 @@ train, then evaluate on the shared held-out draws). Within a stage jobs run in p
 ``--workers N`` local processes, or ``--backend ray`` (optional extra ``hyst-gym[ray]``;
 ``--workers`` then sets the CPUs of the local Ray cluster). Both backends call the same
 :func:`execute` and write the same files. A job whose output exists is skipped, so an
-interrupted run resumes; ``--force`` reruns everything.
+interrupted run resumes; ``--force`` reruns every job (a training run that reached its
+steps is reloaded, not retrained; one saved under other settings than declared must be
+moved away first: it is never continued under new settings).
 
 Raw layout under ``--results`` (default ``experiments/results``)::
 
@@ -58,7 +60,9 @@ def is_done(job: Job, raw: pathlib.Path) -> bool:
         return False
     if job.kind == "train":
         config = out.parent / "config.json"
-        return config.exists() and json.loads(config.read_text()).get("trained_steps", 0) >= job.option("timesteps")
+        # a finished run under other settings is not done: rerunning it gives the resume error
+        return (config.exists() and json.loads(config.read_text()).get("trained_steps", 0) >= job.option("timesteps")
+                and not _changed_settings(job, out.parent))
     if job.kind == "eval" and job.agent in RL_CONFIGS:
         scenario = _scenario(job)
         model = raw / "train" / scenario.source / job.agent / f"seed{job.run}" / "model.zip"
@@ -165,36 +169,29 @@ def _direct_design(job, scenario, out):
     return int(sum(steps))
 
 
+def _changed_settings(job, folder):
+    from baselines.train import DEFAULT_HYPERPARAMS, changed_settings
+
+    config = RL_CONFIGS[job.agent]
+    return changed_settings(folder, config.algo, config.n_stack, config.reward,
+                            {**DEFAULT_HYPERPARAMS[config.algo], **dict(config.hyperparams)})
+
+
 def _train(job, raw, out):
-    from baselines.train import DEFAULT_HYPERPARAMS, train
+    from baselines.train import train
 
     config = RL_CONFIGS[job.agent]
     scenario = _scenario(job)
     folder = out.parent
     timesteps = job.option("timesteps")
     hyperparams = dict(config.hyperparams)
-    _check_resumable(folder, config, {**DEFAULT_HYPERPARAMS[config.algo], **hyperparams})
+    # resumes a run cut short; refuses (one-line error) a run saved under other settings
     train(config.algo, scenario.spec(), timesteps, job.run, folder, n_envs=8, n_stack=config.n_stack,
           checkpoint_every=max(timesteps // 2, 1), eval_every=job.option("eval_every", 0),
           eval_episodes=job.option("eval_episodes", 8), hyperparams=hyperparams, resume=True,
           progress=False, scenario=job.scenario, reward=config.reward)
     shutil.rmtree(folder / "checkpoints", ignore_errors=True)  # model.zip is the final state
     return timesteps
-
-
-def _check_resumable(folder, config, hyperparams):
-    """A run is resumed only under the settings it was started with: a changed algorithm,
-    history, reward or hyperparameter would otherwise continue silently from the old model."""
-    path = folder / "config.json"
-    if not path.exists():
-        return
-    saved = json.loads(path.read_text())
-    now = {"algo": config.algo, "n_stack": config.n_stack, "reward": config.reward,
-           "hyperparams": json.loads(json.dumps(hyperparams))}
-    changed = [key for key, value in now.items() if saved.get(key, "dense" if key == "reward" else None) != value]
-    if changed:
-        raise ValueError(f"{path}: the run was started with other settings ({', '.join(changed)}); "
-                         "move the folder away to retrain it")
 
 
 def _evaluate(job, raw, out):

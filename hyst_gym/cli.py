@@ -31,6 +31,10 @@ SUBCOMMANDS = {
 OPTIONAL_RL_MODULES = ("stable_baselines3", "sb3_contrib", "torch")
 
 
+def _top_module(error: ModuleNotFoundError) -> str:
+    return (error.name or "").split(".")[0]
+
+
 def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="hyst-gym", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -47,8 +51,8 @@ def _load(module_name: str):
     except ModuleNotFoundError as error:
         if error.name and module_name.startswith(error.name):
             raise SystemExit(f"hyst-gym: this subcommand is not available ({module_name} is missing)")
-        if error.name in OPTIONAL_RL_MODULES:
-            raise SystemExit(f"hyst-gym: this subcommand needs {error.name}; install the RL extra: "
+        if _top_module(error) in OPTIONAL_RL_MODULES and not os.environ.get("HYST_GYM_DEBUG"):
+            raise SystemExit(f"hyst-gym: this subcommand needs {_top_module(error)}; install the RL extra: "
                              "pip install 'hyst-gym[rl]'")
         raise
 
@@ -65,10 +69,10 @@ def main(argv=None) -> int:
     try:
         return int(module.main(args) or 0)
     except ModuleNotFoundError as error:
-        if error.name not in OPTIONAL_RL_MODULES:
+        if _top_module(error) not in OPTIONAL_RL_MODULES or os.environ.get("HYST_GYM_DEBUG"):
             raise
-        print(f"hyst-gym {args.command}: error: needs {error.name}; install the RL extra: pip install 'hyst-gym[rl]'",
-              file=sys.stderr)
+        print(f"hyst-gym {args.command}: error: needs {_top_module(error)}; install the RL extra: "
+              "pip install 'hyst-gym[rl]'", file=sys.stderr)
         return 2
     except (ValueError, OSError, KeyError) as error:
         if os.environ.get("HYST_GYM_DEBUG"):

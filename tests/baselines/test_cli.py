@@ -3,6 +3,8 @@
 import csv
 import json
 
+import numpy as np
+
 from baselines.scenarios import HELDOUT_SEEDS
 from hyst_gym.cli import main
 
@@ -57,8 +59,16 @@ def test_train_recurrent_ppo_from_cli(tmp_path, capsys):
     assert main(["evaluate", "--agent", str(out), "--episodes", "1", "--out", str(tmp_path / "eval")]) == 0
     with (tmp_path / "eval" / "episodes.csv").open() as handle:
         rows = list(csv.DictReader(handle))
-    assert len(rows) == 1 and float(rows[0]["rms_error"]) > 0
+    assert len(rows) == 1 and int(rows[0]["steps"]) == config["env_kwargs"]["episode_steps"]
+    assert np.isfinite(float(rows[0]["rms_error"])) and float(rows[0]["rms_error"]) > 0
 
     assert main(args[:-1] + ["--n-stack", "4", "--out", str(tmp_path / "bad"), "--no-progress"]) == 2
     error = capsys.readouterr().err.strip().splitlines()
     assert len(error) == 1 and "--n-stack must be 1 for recurrent_ppo" in error[0]
+
+
+def test_missing_rl_extra_is_a_one_line_error(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(__import__("sys").modules, "torch", None)  # as if the rl extra were not installed
+    assert main(["train", "--algo", "ppo", "--timesteps", "64", "--out", str(tmp_path), "--no-progress"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error == "hyst-gym train: error: needs torch; install the RL extra: pip install 'hyst-gym[rl]'"

@@ -128,6 +128,7 @@ def test_train_recurrent_ppo_saves_loads_and_resumes(tmp_path):
     assert config["hyperparams"]["policy_kwargs"]["lstm_hidden_size"] == 64
     assert sorted(p.name for p in (out / "checkpoints").iterdir()) == ["model_128_steps.zip", "model_64_steps.zip"]
     assert len((out / "learning_curve.csv").read_text().strip().splitlines()) == 2  # header + one point
+    assert_last_curve_point_scores_the_saved_model(out, spec)
 
     agent = PolicyAgent.load(out)
     assert agent.recurrent and agent.name == "recurrent_ppo"
@@ -144,3 +145,53 @@ def test_train_recurrent_ppo_saves_loads_and_resumes(tmp_path):
 
     with pytest.raises(ValueError, match="--n-stack must be 1"):
         train("recurrent_ppo", spec, 64, 0, tmp_path / "bad", n_envs=2, n_stack=8, progress=False)
+
+
+def assert_last_curve_point_scores_the_saved_model(out, spec):
+    """The curve's last row is the validation score of model.zip itself, not of the policy
+    before the last update (the periodic points fall inside rollouts)."""
+    import csv
+
+    from baselines.rl import PolicyAgent
+    from baselines.train import record_learning_point
+
+    with (out / "learning_curve.csv").open() as handle:
+        last = list(csv.DictReader(handle))[-1]
+    agent = PolicyAgent.load(out)
+    rescored = record_learning_point(agent.model, out, spec, agent.n_stack, 1)
+    assert int(last["env_steps"]) == rescored["env_steps"]
+    assert float(last["rms_error_iqm"]) == rescored["rms_error_iqm"]
+    assert float(last["settle_time_iqm_s"]) == rescored["settle_time_iqm_s"]
+
+
+def test_final_point_and_resume_under_changed_settings(tmp_path):
+    """PPO with eval_every a multiple of the rollout: the periodic point at the final step
+    predates the last update and must be replaced. --resume with another reward or other
+    hyperparameters is refused before anything is trained or written."""
+    import json
+
+    import pytest
+
+    from baselines.scenarios import scenario_spec
+    from baselines.train import train
+
+    spec = scenario_spec("paper")
+    out = tmp_path / "ppo"
+    # a learning rate large enough that the last update changes the validation score
+    small = {"n_steps": 32, "batch_size": 32, "learning_rate": 3e-3}
+    train("ppo", spec, 128, 0, out, n_envs=2, n_stack=2, checkpoint_every=0, eval_every=64, eval_episodes=1,
+          hyperparams=small, progress=False)
+    steps = [int(line.split(",")[0]) for line in (out / "learning_curve.csv").read_text().splitlines()[1:]]
+    assert steps == [64, 128]
+    assert_last_curve_point_scores_the_saved_model(out, spec)
+
+    saved = (out / "config.json").read_text()
+    for changed, message in (({"reward": "information"}, "reward"),
+                             ({"hyperparams": {**small, "learning_rate": 0.5}}, "hyperparams")):
+        kwargs = {"hyperparams": small, **changed}
+        with pytest.raises(ValueError, match=f"--resume under other settings \\({message}\\)"):
+            train("ppo", spec, 256, 0, out, n_envs=2, n_stack=2, checkpoint_every=0, resume=True, progress=False,
+                  **kwargs)
+        assert (out / "config.json").read_text() == saved
+    assert json.loads(saved)["trained_steps"] == 128
+

@@ -88,22 +88,26 @@ def test_declared_full_profile_meets_the_protocol():
         declared_jobs("huge")
 
 
-def test_rl_configs_are_trainable_and_a_changed_config_is_not_resumed(tmp_path):
+def test_rl_configs_are_trainable_and_a_changed_config_is_not_done(tmp_path):
     from baselines.rewards import REWARDS
     from baselines.rl import ALGORITHMS, RECURRENT_ALGORITHMS
     from baselines.train import DEFAULT_HYPERPARAMS
     from experiments.config import RL_CONFIGS
-    from experiments.run import _check_resumable
+    from experiments.run import is_done
 
     for name, config in RL_CONFIGS.items():
         assert config.algo in ALGORITHMS and config.reward in REWARDS and config.n_stack >= 1, name
         assert config.algo not in RECURRENT_ALGORITHMS or config.n_stack == 1, name
         assert set(dict(config.hyperparams)) <= set(DEFAULT_HYPERPARAMS[config.algo]), name
-    config = RL_CONFIGS["ppo_stack8"]
-    params = dict(DEFAULT_HYPERPARAMS["ppo"])
-    (tmp_path / "config.json").write_text(json.dumps({"algo": "ppo", "n_stack": 8, "hyperparams": params}))
-    _check_resumable(tmp_path, config, params)  # same settings (reward absent = dense): resumable
-    with pytest.raises(ValueError, match="config.json: the run was started with other settings \\(reward\\)"):
-        _check_resumable(tmp_path, RL_CONFIGS["ppo_info_stack8"], params)
-    with pytest.raises(ValueError, match="hyperparams"):
-        _check_resumable(tmp_path, config, {**params, "batch_size": 64})
+    # a finished ppo_stack8 run saved before the reward was recorded (dense): done under its
+    # own config, not done under a config with another reward or other hyperparameters
+    folder = tmp_path / "raw" / "train" / "paper" / "ppo_stack8" / "seed0"
+    folder.mkdir(parents=True)
+    (folder / "model.zip").write_bytes(b"")
+    saved = {"algo": "ppo", "n_stack": 8, "hyperparams": dict(DEFAULT_HYPERPARAMS["ppo"]), "trained_steps": 100}
+    (folder / "config.json").write_text(json.dumps(saved))
+    job = Job("train", "paper", "ppo_stack8", 0, (("timesteps", 100),))
+    assert is_done(job, tmp_path / "raw")
+    assert not is_done(Job("train", "paper", "ppo_stack8", 0, (("timesteps", 200),)), tmp_path / "raw")
+    (folder / "config.json").write_text(json.dumps({**saved, "reward": "information"}))
+    assert not is_done(job, tmp_path / "raw")
