@@ -18,6 +18,7 @@ frame and keeps an LSTM state instead, so its ``--n-stack`` is 1 (the default fo
 
 from __future__ import annotations
 
+import copy
 import csv
 import json
 import pathlib
@@ -228,7 +229,9 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=None,
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
     wall_start = time.time()  # learning-curve rows report wall time since this call
-    params = {**DEFAULT_HYPERPARAMS[algo], **(hyperparams or {})}
+    # deep copies: SB3 writes into policy_kwargs (SAC adds use_sde), which must reach neither
+    # the module's defaults nor the recorded config
+    params = copy.deepcopy({**DEFAULT_HYPERPARAMS[algo], **(hyperparams or {})})
     config = {"algo": algo, "policy": POLICIES[algo], "env_id": spec.env_id, "env_kwargs": spec.env_kwargs,
               "dt": spec.dt, "scenario": scenario, "reward": reward, "timesteps": int(timesteps), "seed": int(seed),
               "n_envs": int(n_envs), "n_stack": int(n_stack), "hyperparams": params,
@@ -255,7 +258,7 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=None,
         if resume:
             print(f"[train] --resume: no checkpoint in {out}, starting fresh")
         model = cls(POLICIES[algo], env, seed=int(seed), device="cpu", verbose=0,
-                    tensorboard_log=str(out / "tb"), **params)
+                    tensorboard_log=str(out / "tb"), **copy.deepcopy(params))
     (out / "config.json").write_text(json.dumps(config, indent=2))
     remaining = int(timesteps) - int(model.num_timesteps)
     start_wall = time.time()

@@ -195,3 +195,22 @@ def test_final_point_and_resume_under_changed_settings(tmp_path):
         assert (out / "config.json").read_text() == saved
     assert json.loads(saved)["trained_steps"] == 128
 
+
+
+def test_training_leaves_the_default_hyperparameters_alone(tmp_path):
+    """SB3's SAC writes use_sde into policy_kwargs: neither the module defaults nor the
+    recorded config may pick that up (a resume compares the recorded config)."""
+    import copy
+    import json
+
+    from baselines.scenarios import scenario_spec
+    from baselines.train import DEFAULT_HYPERPARAMS, changed_settings, train
+
+    before = copy.deepcopy(DEFAULT_HYPERPARAMS)
+    small = {"learning_starts": 8, "batch_size": 8, "gradient_steps": 1}
+    train("sac", scenario_spec("paper"), 16, 0, tmp_path, n_envs=2, checkpoint_every=0, hyperparams=small,
+          progress=False)
+    assert DEFAULT_HYPERPARAMS == before
+    saved = json.loads((tmp_path / "config.json").read_text())
+    assert saved["hyperparams"] == {**before["sac"], **small}
+    assert changed_settings(tmp_path, "sac", 8, "dense", {**DEFAULT_HYPERPARAMS["sac"], **small}) == []
