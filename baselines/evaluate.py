@@ -26,9 +26,14 @@ def configure_parser(parser):
     parser.add_argument("--scenario", choices=sorted(SCENARIOS), default="paper")
     parser.add_argument("--episodes", type=int, default=50)
     parser.add_argument("--seed", type=int, default=None, help="first seed (default: the held-out set)")
-    parser.add_argument("--artifacts", default="experiments/results/raw",
-                        help="folder with tuned schedules and designs (default experiments/results/raw)")
+    parser.add_argument("--artifacts", default=str(COMMITTED_ARTIFACTS),
+                        help="folder with tuned schedules and designs (default: the committed "
+                             "experiments/results/raw of this checkout, from any working directory)")
     parser.add_argument("--out", required=True)
+
+
+#: the committed tuning and design results beside the package (present in a source checkout)
+COMMITTED_ARTIFACTS = pathlib.Path(__file__).resolve().parents[1] / "experiments" / "results" / "raw"
 
 
 def write_episodes_csv(path, records, extra=None):
