@@ -55,7 +55,8 @@ class RLConfig:
 #: RL configurations by name. ``stack8``: 8 frames of history; ``stack1`` (no history) and
 #: ``lstm`` (a recurrent policy, one frame) are the history ablation; ``info``: trained on
 #: the Fisher-information increment instead of the dense error (uses no truth), for 300k
-#: steps (its validation settle time stops improving from about there, measured to 1M).
+#: steps (its validation settle time stopped improving from about there in a probe of two
+#: seeds run to 1M steps, not part of the committed results).
 #: RecurrentPPO's minibatch is 2048 steps: at 256 it trains about 4x slower (measured) for
 #: the same steps.
 RL_CONFIGS = {
