@@ -149,9 +149,15 @@ def targets(table, summary):
                                           "tracking_rms_error")
         if tracking and tracking_schedule:
             rl = min(tracking, key=lambda a: drift[a]["tracking_rms_error"]["iqm"])
+            # mean square over the episode = mean of the two halves' mean squares, so the first
+            # half's share of the squared error is 1 - tracking**2 / (2 * rms**2)
+            episodes = [r for rows in table["drift"][best_rl].values() for r in rows]
+            first_half_share = float(np.median([1.0 - r["tracking_rms_error"] ** 2 / (2.0 * r["rms_error"] ** 2)
+                                                for r in episodes if r["rms_error"] > 0]))
             out["drift_rms_half_best_schedule"]["tracking"] = {
                 "best_rl": rl, "rl": drift[rl]["tracking_rms_error"], "best_schedule": tracking_schedule,
-                "schedule": drift[tracking_schedule]["tracking_rms_error"]}
+                "schedule": drift[tracking_schedule]["tracking_rms_error"],
+                "first_half_share_of_squared_error": first_half_share}
     return out
 
 

@@ -80,8 +80,9 @@ def markdown_targets(tgt):
                      f"{t['schedule_ci95'][1]:.3g}]: **{'met' if t['met'] else 'NOT met'}**.")
         if "tracking" in t:
             k = t["tracking"]
-            lines.append(f"  The episode RMS is mostly the initial acquisition (initial errors of up to a few hundred "
-                         f"A/m). Over the episode's second half (tracking once acquired): best RL `{k['best_rl']}` "
+            lines.append(f"  The episode RMS is mostly the initial acquisition: for `{t['best_rl']}` the first half of "
+                         f"the episode holds {k['first_half_share_of_squared_error']:.1%} of the squared error (median "
+                         f"over episodes). Over the second half (tracking once acquired): best RL `{k['best_rl']}` "
                          f"{_fmt(k['rl'])} A/m vs best schedule `{k['best_schedule']}` {_fmt(k['schedule'])} A/m, "
                          f"ratio {k['rl']['iqm'] / k['schedule']['iqm']:.2f}.")
     else:
