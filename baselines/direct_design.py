@@ -66,15 +66,14 @@ class DirectDesignResult:
 
 
 def search_direct_design(score, limits: ExcitationLimits, episode_s: float, n_knots: int = 16,
-                         max_evaluations: int = 600, seed: int = 0, progress=None) -> DirectDesignResult:
+                         max_evaluations: int = 600, seed: int = 0) -> DirectDesignResult:
     """CMA-ES over the knots of a :class:`KnotSchedule`, minimizing ``score(schedule)``.
 
     ``score`` maps a schedule to a float to minimize (e.g. the censored IQM settle time, s,
     over some draws); it must be deterministic for the search to be reproducible. The
     search starts from a zero field with step size 1 in the tanh coordinates, bounded to
     [-3, 3] (so a knot reaches up to tanh(3) = 99.5 % of ``field_max``), with a fixed
-    CMA-ES seed. ``progress`` (optional) is called
-    with the number of evaluations done after each generation.
+    CMA-ES seed.
     """
     import cma
 
@@ -91,8 +90,6 @@ def search_direct_design(score, limits: ExcitationLimits, episode_s: float, n_kn
         candidates = strategy.ask()
         strategy.tell(candidates, [float(score(schedule_of(c))) for c in candidates])
         history.append(float(strategy.result.fbest))
-        if progress is not None:
-            progress(int(strategy.result.evaluations))
     return DirectDesignResult(schedule_of(strategy.result.xbest), float(strategy.result.fbest),
                               int(strategy.result.evaluations), tuple(history))
 

@@ -42,10 +42,12 @@ import time
 
 import numpy as np
 
+from baselines.rewards import REWARDS
+
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 RAW = RESULTS / "raw" / "ablation_reward"
 SUMMARY = RESULTS / "ablation_reward.json"
-ARMS = ("dense", "information", "band")
+ARMS = REWARDS  # one arm per training reward of baselines/train.py
 SCENARIO = "paper"
 CONFIG = "ppo_stack8"
 METRICS = ("settle_time_s", "integrated_error", "rms_error", "final_error")

@@ -11,10 +11,14 @@ import numpy as np
 from .report_data import DEFAULT_RESULTS, HISTORY_ALTERNATIVES, RL_MAIN, ROOT, episode_length_s, is_rl_agent
 
 
+def _interval(value, ci95, unit="", digits=3):
+    """``"2.22 s [2.21, 2.24]"``: a value, its unit, and its 95 % interval."""
+    return f"{value:.{digits}g}{' ' + unit if unit else ''} [{ci95[0]:.{digits}g}, {ci95[1]:.{digits}g}]"
+
+
 def _fmt(entry, digits=3):
-    if entry is None:
-        return ""
-    return f"{entry['iqm']:.{digits}g} [{entry['ci95'][0]:.{digits}g}, {entry['ci95'][1]:.{digits}g}]"
+    """A summary entry ``{"iqm", "ci95"}`` as ``"iqm [lo, hi]"`` ("" for none)."""
+    return "" if entry is None else _interval(entry["iqm"], entry["ci95"], digits=digits)
 
 
 def _scenario_description(name):
@@ -54,9 +58,8 @@ def markdown_targets(tgt):
     t = tgt.get("paper_settle_half_ramp")
     if t:
         lines.append(f"- **Paper scenario, settle time <= half the ramp's:** best RL config `{t['best_rl']}` "
-                     f"IQM {t['rl_iqm']:.3g} s [{t['rl_ci95'][0]:.3g}, {t['rl_ci95'][1]:.3g}] vs ramp "
-                     f"{t['ramp_iqm']:.3g} s [{t['ramp_ci95'][0]:.3g}, {t['ramp_ci95'][1]:.3g}]: "
-                     f"**{'met' if t['met'] else 'NOT met'}**.")
+                     f"IQM {_interval(t['rl_iqm'], t['rl_ci95'], 's')} vs ramp "
+                     f"{_interval(t['ramp_iqm'], t['ramp_ci95'], 's')}: **{'met' if t['met'] else 'NOT met'}**.")
         if t.get("best_non_rl"):
             gap = 1.0 - 0.5 * t["ramp_iqm"] / t["best_non_rl_iqm"]
             lines.append(f"  For scale: the best non-RL input, `{t['best_non_rl']}`, settles at "
@@ -75,9 +78,9 @@ def markdown_targets(tgt):
     t = tgt.get("drift_rms_half_best_schedule")
     if t:
         lines.append(f"- **Drift scenario, RMS error <= half the best schedule's:** best RL config `{t['best_rl']}` "
-                     f"IQM {t['rl_iqm']:.3g} A/m [{t['rl_ci95'][0]:.3g}, {t['rl_ci95'][1]:.3g}] vs best schedule "
-                     f"`{t['best_schedule']}` {t['schedule_iqm']:.3g} A/m [{t['schedule_ci95'][0]:.3g}, "
-                     f"{t['schedule_ci95'][1]:.3g}]: **{'met' if t['met'] else 'NOT met'}**.")
+                     f"IQM {_interval(t['rl_iqm'], t['rl_ci95'], 'A/m')} vs best schedule `{t['best_schedule']}` "
+                     f"{_interval(t['schedule_iqm'], t['schedule_ci95'], 'A/m')}: "
+                     f"**{'met' if t['met'] else 'NOT met'}**.")
         if "tracking" in t:
             k = t["tracking"]
             lines.append(f"  The episode RMS is mostly the initial acquisition: for `{t['best_rl']}` the first half of "
@@ -95,9 +98,9 @@ def markdown_targets(tgt):
             verdict = "RL's IQM is lower, but the intervals overlap: RL does **not** clearly beat the optimal design"
         else:
             verdict = "RL does **not** beat the optimal design: it is slower"
-        lines.append(f"- **Against the open-loop optimal design (paper):** `{t['best_rl']}` {t['rl_iqm']:.3g} s "
-                     f"[{t['rl_ci95'][0]:.3g}, {t['rl_ci95'][1]:.3g}] vs `optimal_design` {t['design_iqm']:.3g} s "
-                     f"[{t['design_ci95'][0]:.3g}, {t['design_ci95'][1]:.3g}]; P(RL better) = "
+        lines.append(f"- **Against the open-loop optimal design (paper):** `{t['best_rl']}` "
+                     f"{_interval(t['rl_iqm'], t['rl_ci95'], 's')} vs `optimal_design` "
+                     f"{_interval(t['design_iqm'], t['design_ci95'], 's')}; P(RL better) = "
                      f"{t['probability_rl_better']:.2f}. {verdict}.")
     return lines
 
@@ -234,10 +237,7 @@ def readme_section(tgt, summary, compute, ablation=None, budget_lines=()):
     lines += [""] + list(budget_lines)
     lines += ["", "| agent | paper: settle time IQM (s) | paper: RMS error (A/m) | drift: RMS error (A/m) | "
               "drift: second-half RMS (A/m) | lumped: settle time (s) |", "|---|---|---|---|---|---|"]
-    cell = lambda scenario, agent, metric: (f"{summary[scenario][agent][metric]['iqm']:.3g} "  # noqa: E731
-                                            f"[{summary[scenario][agent][metric]['ci95'][0]:.3g}, "
-                                            f"{summary[scenario][agent][metric]['ci95'][1]:.3g}]"
-                                            if metric in summary.get(scenario, {}).get(agent, {}) else "")
+    cell = lambda scenario, agent, metric: _fmt(summary.get(scenario, {}).get(agent, {}).get(metric))  # noqa: E731
     for agent in ("ramp", "ramp_tuned", "sine", "chirp", "prbs", "multisine", "random", "optimal_design",
                   "optimal_design_prior", "direct_design", "greedy_info", "minmax", "gradient", "multiple_model", "ppo",
                   "ppo_stack1", "ppo_lstm", "ppo_info_stack8", "ppo_lstm_info", "sac"):
