@@ -12,11 +12,15 @@ Public API
 :func:`minmax_solution`, :func:`envelopes`
     the closed-form min-max;
 :class:`PEMonitor`
-    windowed test of the excitation conditions 3.1(a)/(b).
+    windowed test of the excitation conditions 3.1(a)/(b);
+:func:`sensitivity_curve`, :func:`sensitivity_envelope`, :func:`error_bound`, :func:`first_passage`
+    the linearized bound on how fast any slew-limited input can make the scalar
+    estimator converge (:mod:`hyst_gym.estimation.convergence`).
 """
 
 from .bank import ModelBank
 from .config import EstimatorConfig, FirstOrderPlant, LumpedPlant
+from .convergence import error_bound, first_passage, sensitivity_curve, sensitivity_envelope
 from .estimators import (ESTIMATORS, AdaptiveEstimator, GradientEstimator, MinMaxEstimator,
                          MultipleModelEstimator, hold_matrices, make_estimator)
 from .minmax import envelopes, minmax_solution
@@ -24,6 +28,6 @@ from .pe import PEMonitor
 
 __all__ = [
     "AdaptiveEstimator", "ESTIMATORS", "EstimatorConfig", "FirstOrderPlant", "GradientEstimator", "LumpedPlant",
-    "MinMaxEstimator", "ModelBank", "MultipleModelEstimator", "PEMonitor", "envelopes", "hold_matrices",
-    "make_estimator", "minmax_solution",
+    "MinMaxEstimator", "ModelBank", "MultipleModelEstimator", "PEMonitor", "envelopes", "error_bound",
+    "first_passage", "hold_matrices", "make_estimator", "minmax_solution", "sensitivity_curve", "sensitivity_envelope",
 ]
