@@ -282,3 +282,35 @@ def training_budget(raw):
         steps = [json.loads(p.read_text()).get("trained_steps") for p in sorted(config_dir.glob("seed*/config.json"))]
         out[config_dir.parent.name][config_dir.name] = steps
     return dict(out)
+
+
+def convergence_floor(results, targets_: dict):
+    """The bound of ``experiments/settle_floor.py`` set beside the targets; None if it was not run."""
+    path = pathlib.Path(results) / "settle_floor.json"
+    if not path.exists():
+        return None
+    floor = json.loads(path.read_text())
+    paper, drift = floor["paper"], floor["drift"]
+    runs = paper["agents"]
+    settled = {k: v["noise_free_settle_s"] for k, v in runs.items() if np.isfinite(v["noise_free_settle_s"])}
+    fastest = min(settled, key=settled.get)
+    out = {"paper": {
+        "bound_settle_s": paper["bound_settle_s"], "peak_field": paper["peak_field"],
+        "peak_sensitivity": paper["peak_sensitivity"], "reach_peak_s": paper["peak_field"] / paper["slew_max"],
+        "slew_ramp_noise_free_settle_s": paper["slew_ramp_noise_free_settle_s"],
+        "slew_ramp_heldout": paper["slew_ramp_heldout"], "runs_checked": len(runs), "fastest_noise_free": fastest,
+        "fastest_noise_free_settle_s": settled[fastest], "band": paper["band"],
+        "worst_margin": min(v["min_margin"] for v in runs.values()),
+        "max_sensitivity_ratio": max(v["max_sensitivity_ratio"] for v in runs.values())}}
+    runs = drift["agents"]
+    out["drift"] = {"rms_bound": drift["rms_bound"], "largest_initial_error": max(drift["initial_error"]),
+                    "runs_checked": len(runs), "pairs": len(runs) * len(drift["rms_bound_per_draw"]),
+                    "pairs_below": sum(v["draws_below_bound"] for v in runs.values()),
+                    "min_ratio": min(v["min_ratio_to_bound"] for v in runs.values())}
+    target = targets_.get("drift_rms_half_best_schedule")
+    if target:
+        best = target["best_rl"]
+        mine = [v["noise_free_rms_iqm"] for k, v in runs.items() if k.split("/")[0] == best]
+        if mine:
+            out["drift"].update({"best_rl": best, "best_rl_worst_run_ratio": max(mine) / drift["rms_bound"]["iqm"]})
+    return out

@@ -54,7 +54,8 @@ def _output_path(job: Job, raw: pathlib.Path) -> pathlib.Path:
 
 def is_done(job: Job, raw: pathlib.Path) -> bool:
     """Whether a job's output exists and is current: a training run has reached its
-    timesteps (otherwise it is resumed), and a policy's evaluation is newer than its model."""
+    timesteps under the declared settings (otherwise it is resumed), a grid search covered
+    the current grid, and an evaluation is newer than the model or tuning it plays."""
     out = _output_path(job, raw)
     if not out.exists():
         return False
@@ -63,13 +64,32 @@ def is_done(job: Job, raw: pathlib.Path) -> bool:
         # a finished run under other settings is not done: rerunning it gives the resume error
         return (config.exists() and json.loads(config.read_text()).get("trained_steps", 0) >= job.option("timesteps")
                 and not _changed_settings(job, out.parent))
-    if job.kind == "eval" and job.agent in RL_CONFIGS:
-        scenario = _scenario(job)
-        model = raw / "train" / scenario.source / job.agent / f"seed{job.run}" / "model.zip"
+    if job.kind == "tune":
+        from baselines.schedules import TUNING_GRIDS, grid_points
+
+        # a grid search over another grid (the grid was extended since) is not this job's
+        searched = [point["params"] for point in json.loads(out.read_text()).get("grid", [])]
+        return searched == grid_points(TUNING_GRIDS[job.agent])
+    if job.kind == "eval":
+        source = _evaluation_source(job, raw)
         # a git checkout writes both files in the same second in either order; a real
-        # retraining makes the model newer than its old evaluation by far more than that
-        return model.exists() and out.stat().st_mtime >= model.stat().st_mtime - CHECKOUT_SLACK_S
+        # retraining or retuning makes the source newer than its old evaluation by far more
+        return source is None or (source.exists()
+                                  and out.stat().st_mtime >= source.stat().st_mtime - CHECKOUT_SLACK_S)
     return True
+
+
+def _evaluation_source(job: Job, raw: pathlib.Path):
+    """The file an evaluation plays (trained model or grid-search winner), or None for fixed agents."""
+    from baselines.schedules import TUNING_GRIDS
+
+    scenario = _scenario(job)
+    if job.agent in RL_CONFIGS:
+        return raw / "train" / scenario.source / job.agent / f"seed{job.run}" / "model.zip"
+    tuned = raw / "tune" / scenario.source / f"{job.agent}.json"
+    if job.agent in TUNING_GRIDS and job.agent != "ramp" and tuned.exists():
+        return tuned
+    return None
 
 
 def execute(job: Job, results: str) -> dict:

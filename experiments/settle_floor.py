@@ -176,18 +176,20 @@ def drift_floor(raw, rl_seeds, progress):
     for draw, a_true in enumerate(progress(initial_a, "drift bounds")):
         time, _, bound, _, _ = error_bound_for(scenario, config, float(a_true))
         rms_bound[draw] = np.sqrt(np.mean(np.interp(step_times, time, bound) ** 2))
-    checks = {}
+    checks, per_draw = {}, {}
     for label, factory in progress(agents_of("drift", raw, rl_seeds), "drift agents, noise off"):
         records, _ = run_episodes(factory(), spec, HELDOUT_SEEDS)
         rms = np.array([r["rms_error"] for r in records])
+        per_draw[label] = rms
         checks[label] = {"noise_free_rms_iqm": summarize(rms[None, :])["iqm"],
                          "min_ratio_to_bound": float(np.min(rms / rms_bound)),
                          "draws_below_bound": int(np.sum(rms < rms_bound))}
-    return {"initial_a": initial_a.tolist(), "rms_bound_per_draw": rms_bound.tolist(),
-            "rms_bound": summarize(rms_bound[None, :]), "agents": checks}
+    return {"initial_a": initial_a.tolist(), "initial_error": np.abs(config.initial_estimate - initial_a).tolist(),
+            "rms_bound_per_draw": rms_bound.tolist(),
+            "rms_bound": summarize(rms_bound[None, :]), "agents": checks}, per_draw
 
 
-def plot(paper, curves, traces, drift, summary, path):
+def plot(paper, curves, traces, drift, drift_rms, summary, path):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -219,6 +221,10 @@ def plot(paper, curves, traces, drift, summary, path):
     bound = np.array(drift["rms_bound_per_draw"])
     order = np.argsort(bound)
     ax.plot(bound[order], color="k", lw=2.5, label="bound, per draw")
+    shown = ["sine", "optimal_design"] + [k for k in drift_rms if k.startswith("ppo_info_stack8/")][:1]
+    for label in shown:
+        if label in drift_rms:
+            ax.plot(drift_rms[label][order], ".", ms=5, label=f"{label} (noise off)")
     half = _half_best_schedule(summary, "drift")
     if half:
         ax.axhline(half, color="tab:red", ls=":", label=f"target: half the best schedule ({half:.1f} A/m)")
@@ -254,12 +260,12 @@ def main(argv=None) -> int:
         return tqdm(items, desc=desc, unit="item", leave=False)
 
     paper, curves, traces = paper_floor(raw, args.rl_seeds, progress)
-    drift = drift_floor(raw, args.rl_seeds, progress)
+    drift, drift_rms = drift_floor(raw, args.rl_seeds, progress)
     summary_path = results / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else None
     (results / "settle_floor.json").write_text(json.dumps({"paper": paper, "drift": drift}, indent=2) + "\n")
     (results / "figures").mkdir(parents=True, exist_ok=True)
-    plot(paper, curves, traces, drift, summary, results / "figures" / "settle_floor.png")
+    plot(paper, curves, traces, drift, drift_rms, summary, results / "figures" / "settle_floor.png")
     print(f"[settle_floor] paper: bound {paper['bound_settle_s']:.3f} s, slew_ramp noise-free "
           f"{paper['slew_ramp_noise_free_settle_s']:.3f} s; drift: RMS bound IQM {drift['rms_bound']['iqm']:.2f} A/m "
           f"-> {results / 'settle_floor.json'}")

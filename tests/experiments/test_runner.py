@@ -111,3 +111,34 @@ def test_rl_configs_are_trainable_and_a_changed_config_is_not_done(tmp_path):
     assert not is_done(Job("train", "paper", "ppo_stack8", 0, (("timesteps", 200),)), tmp_path / "raw")
     (folder / "config.json").write_text(json.dumps({**saved, "reward": "information"}))
     assert not is_done(job, tmp_path / "raw")
+
+
+def test_a_grid_search_over_an_old_grid_and_its_evaluations_are_not_done(tmp_path):
+    import os
+
+    from baselines.schedules import TUNING_GRIDS, grid_points
+    from experiments.run import is_done
+
+    raw = tmp_path / "raw"
+    tuned = raw / "tune" / "paper" / "sine.json"
+    tuned.parent.mkdir(parents=True)
+    current = [{"params": p, "score": 1.0} for p in grid_points(TUNING_GRIDS["sine"])]
+    tune = Job("tune", "paper", "sine", 0, (("episodes", 2),))
+    tuned.write_text(json.dumps({"grid": current[:-1], "best": current[0]["params"]}))
+    assert not is_done(tune, raw)  # the grid has a point this search never scored
+    tuned.write_text(json.dumps({"grid": current, "best": current[0]["params"]}))
+    assert is_done(tune, raw)
+    evaluation = raw / "eval" / "paper" / "sine" / "run0.csv"
+    evaluation.parent.mkdir(parents=True)
+    evaluation.write_text("seed\n")
+    played = Job("eval", "paper", "sine", 0, (("episodes", 2),))
+    old = tuned.stat().st_mtime - 3600
+    os.utime(evaluation, (old, old))
+    assert not is_done(played, raw)  # it played the previous winner
+    os.utime(evaluation, None)
+    assert is_done(played, raw)
+    # the paper's ramp plays no tuning: its evaluation is current whenever it exists
+    ramp = raw / "eval" / "paper" / "ramp" / "run0.csv"
+    ramp.parent.mkdir(parents=True)
+    ramp.write_text("seed\n")
+    assert is_done(Job("eval", "paper", "ramp", 0, (("episodes", 2),)), raw)
