@@ -301,7 +301,9 @@ def convergence_floor(results, targets_: dict):
         "slew_ramp_heldout": paper["slew_ramp_heldout"], "runs_checked": len(runs), "fastest_noise_free": fastest,
         "fastest_noise_free_settle_s": settled[fastest], "band": paper["band"],
         "worst_margin": min(v["min_margin"] for v in runs.values()),
-        "max_sensitivity_ratio": max(v["max_sensitivity_ratio"] for v in runs.values())}}
+        "max_sensitivity_ratio": max(v["max_sensitivity_ratio"] for v in runs.values()),
+        "gain_sweep": [dict(row, ratio=row["slew_ramp_settle_s"] / row["ramp_settle_s"])
+                       for row in paper.get("gain_sweep", [])]}}
     runs = drift["agents"]
     out["drift"] = {"rms_bound": drift["rms_bound"], "largest_initial_error": max(drift["initial_error"]),
                     "runs_checked": len(runs), "pairs": len(runs) * len(drift["rms_bound_per_draw"]),

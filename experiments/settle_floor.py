@@ -18,6 +18,9 @@ a convergence rate. The bound is then checked against independent computations:
 * in ``drift``, the bound on the episode RMS error for each held-out draw against every
   agent's noise-free RMS on the same draw.
 
+Last, a sweep over the estimator's adaptation gain shows how the paper target (a ratio of
+two inputs' settle times under one estimator) depends on the gain the paper chose.
+
 Writes ``experiments/results/settle_floor.json`` and ``figures/settle_floor.png``;
 ``python -m experiments.report`` quotes it beside the targets.
 """
@@ -189,6 +192,43 @@ def drift_floor(raw, rl_seeds, progress):
             "rms_bound": summarize(rms_bound[None, :]), "agents": checks}, per_draw
 
 
+#: adaptation gains of the sweep (the paper's is 1); all keep the comparison system
+#: overdamped at the peak sensitivity of the paper's parameters (gamma*9.9**2 < 2500)
+SWEEP_GAINS = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0)
+
+
+def gain_sweep(progress):
+    """Settle time of the paper's ramp and of the bound's fastest input against the estimator gain.
+
+    The targets compare two inputs under one estimator; the ratio depends on its gain. For
+    each gain: the bound, and the environment's own closed loop (noise off) under the paper's
+    ramp and under ``slew_ramp``, so one sees where half the ramp would become reachable.
+    """
+    import dataclasses
+
+    from baselines.agents import ScheduleAgent
+    from baselines.evaluation import run_episodes
+    from baselines.scenarios import HELDOUT_SEEDS, SCENARIOS
+    from baselines.schedules import Ramp
+    from hyst_gym.estimation.convergence import first_passage
+
+    base = SCENARIOS["paper"]
+    rows = []
+    for gain in progress(SWEEP_GAINS, "gain sweep"):
+        scenario = dataclasses.replace(base, settings={**base.settings, "estimator_gamma": gain})
+        config = estimator_of(scenario)
+        a_true = scenario.settings["a_true"]
+        time, _, bound, fields, sensitivity = error_bound_for(scenario, config, a_true)
+        spec = noise_free(scenario)
+        ramp = ScheduleAgent(Ramp(), scenario.limits, scenario.episode_steps, name="ramp")
+        fastest = slew_ramp(scenario, float(fields[np.argmax(sensitivity)]))
+        settle = {agent.name: run_episodes(agent, spec, HELDOUT_SEEDS[:1])[0][0]["settle_time_s"]
+                  for agent in (ramp, fastest)}
+        rows.append({"gamma": gain, "bound_settle_s": first_passage(time, bound, 1e-3 * a_true),
+                     "ramp_settle_s": settle["ramp"], "slew_ramp_settle_s": settle["slew_ramp"]})
+    return rows
+
+
 def plot(paper, curves, traces, drift, drift_rms, summary, path):
     import matplotlib
 
@@ -261,6 +301,7 @@ def main(argv=None) -> int:
 
     paper, curves, traces = paper_floor(raw, args.rl_seeds, progress)
     drift, drift_rms = drift_floor(raw, args.rl_seeds, progress)
+    paper["gain_sweep"] = gain_sweep(progress)
     summary_path = results / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else None
     (results / "settle_floor.json").write_text(json.dumps({"paper": paper, "drift": drift}, indent=2) + "\n")

@@ -38,6 +38,12 @@ def test_report_quotes_the_floor_file(tmp_path):
     floor = {"paper": {"bound_settle_s": 2.25, "peak_field": 81200.0, "peak_sensitivity": 9.9, "slew_max": 5e4,
                        "slew_ramp_noise_free_settle_s": 2.25, "band": 7.012,
                        "slew_ramp_heldout": {"iqm": 2.23, "ci95": [2.21, 2.26], "n": 50},
+                       "gain_sweep": [{"gamma": 0.5, "bound_settle_s": 3.4, "ramp_settle_s": float("nan"),
+                                       "slew_ramp_settle_s": 3.4},
+                                      {"gamma": 1.0, "bound_settle_s": 2.25, "ramp_settle_s": 4.4,
+                                       "slew_ramp_settle_s": 2.25},
+                                      {"gamma": 2.0, "bound_settle_s": 1.67, "ramp_settle_s": 3.6,
+                                       "slew_ramp_settle_s": 1.67}],
                        "agents": {"a": {"noise_free_settle_s": 2.3, "min_margin": -0.05, "max_sensitivity_ratio": 1.0},
                                   "b": {"noise_free_settle_s": float("nan"), "min_margin": 1.0,
                                         "max_sensitivity_ratio": 0.9}}},
@@ -55,5 +61,7 @@ def test_report_quotes_the_floor_file(tmp_path):
     assert numbers["drift"]["best_rl_worst_run_ratio"] == pytest.approx(17.6 / 17.5)
     text = "\n".join(markdown_floor(numbers, targets))
     assert "2.25 s for any input" in text and "3% below it" in text and "10.8 A/m" in text
+    assert "gamma = 0.5: 3.4 s vs never" in text and "(ratio 0.51)" in text
+    assert "within reach from gamma = 2" in text
     assert convergence_floor(tmp_path / "missing", targets) is None
     assert "not computed" in markdown_floor(None, targets)[0]
