@@ -55,7 +55,7 @@ def _output_path(job: Job, raw: pathlib.Path) -> pathlib.Path:
 def is_done(job: Job, raw: pathlib.Path) -> bool:
     """Whether a job's output exists and is current: a training run has reached its
     timesteps under the declared settings (otherwise it is resumed), a grid search covered
-    the current grid, and an evaluation is newer than the model or tuning it plays."""
+    the current grid, and an evaluation is newer than the model, design or tuning it plays."""
     out = _output_path(job, raw)
     if not out.exists():
         return False
@@ -80,12 +80,15 @@ def is_done(job: Job, raw: pathlib.Path) -> bool:
 
 
 def _evaluation_source(job: Job, raw: pathlib.Path):
-    """The file an evaluation plays (trained model or grid-search winner), or None for fixed agents."""
+    """The file an evaluation plays (trained model, design or grid-search winner), or None for fixed agents."""
+    from baselines.registry import DESIGN_AGENTS
     from baselines.schedules import TUNING_GRIDS
 
     scenario = _scenario(job)
     if job.agent in RL_CONFIGS:
         return raw / "train" / scenario.source / job.agent / f"seed{job.run}" / "model.zip"
+    if job.agent in DESIGN_AGENTS:
+        return raw / "design" / scenario.source / f"{job.agent}.json"
     tuned = raw / "tune" / scenario.source / f"{job.agent}.json"
     if job.agent in TUNING_GRIDS and job.agent != "ramp" and tuned.exists():
         return tuned

@@ -113,7 +113,7 @@ def test_rl_configs_are_trainable_and_a_changed_config_is_not_done(tmp_path):
     assert not is_done(job, tmp_path / "raw")
 
 
-def test_a_grid_search_over_an_old_grid_and_its_evaluations_are_not_done(tmp_path):
+def test_a_grid_search_over_an_old_grid_and_stale_evaluations_are_not_done(tmp_path):
     import os
 
     from baselines.schedules import TUNING_GRIDS, grid_points
@@ -137,6 +137,15 @@ def test_a_grid_search_over_an_old_grid_and_its_evaluations_are_not_done(tmp_pat
     assert not is_done(played, raw)  # it played the previous winner
     os.utime(evaluation, None)
     assert is_done(played, raw)
+    # a redesigned input makes its evaluations stale the same way
+    design = raw / "design" / "paper" / "optimal_design.json"
+    design.parent.mkdir(parents=True)
+    design.write_text("{}")
+    designed = raw / "eval" / "paper" / "optimal_design" / "run0.csv"
+    designed.parent.mkdir(parents=True)
+    designed.write_text("seed\n")
+    os.utime(designed, (old, old))
+    assert not is_done(Job("eval", "paper", "optimal_design", 0, (("episodes", 2),)), raw)
     # the paper's ramp plays no tuning: its evaluation is current whenever it exists
     ramp = raw / "eval" / "paper" / "ramp" / "run0.csv"
     ramp.parent.mkdir(parents=True)
