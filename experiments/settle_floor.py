@@ -239,7 +239,7 @@ def plot(paper, curves, traces, drift, drift_rms, summary, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    fig, axes = plt.subplots(1, 4, figsize=(20, 4.2))
     ax = axes[0]
     ax.plot(curves["fields"] / 1e3, curves["sensitivity"], color="k")
     ax.axvline(paper["peak_field"] / 1e3, color="tab:red", ls=":", label=f"peak at {paper['peak_field'] / 1e3:.1f} kA/m")
@@ -274,6 +274,20 @@ def plot(paper, curves, traces, drift, drift_rms, summary, path):
         ax.axhline(half, color="tab:red", ls=":", label=f"target: half the best schedule ({half:.1f} A/m)")
     ax.set(xlabel="held-out draw (sorted by bound)", ylabel="episode RMS error (A/m)",
            title=f"drift: RMS bound IQM {drift['rms_bound']['iqm']:.1f} A/m")
+    ax.legend(fontsize=8)
+    ax = axes[3]
+    sweep = paper.get("gain_sweep", [])
+    gains = np.array([row["gamma"] for row in sweep])
+    ratio = np.array([row["slew_ramp_settle_s"] / row["ramp_settle_s"] for row in sweep])  # nan: ramp never settles
+    ax.semilogx(gains, ratio, "o-", color="k", label="fastest input / paper's ramp")
+    never = gains[~np.isfinite(ratio)]
+    if never.size:
+        ax.text(0.3, 0.55, "ramp never settles in the episode at gamma = " + ", ".join(f"{g:g}" for g in never),
+                transform=ax.transAxes, fontsize=8)
+    ax.axhline(0.5, color="tab:red", ls=":", label="target: half the ramp")
+    ax.axvline(paper["gamma"], color="gray", ls="--", label=f"the paper's gain ({paper['gamma']:g})")
+    ax.set(xlabel="adaptation gain gamma", ylabel="settle-time ratio (noise off)",
+           title="paper target against the estimator gain")
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
