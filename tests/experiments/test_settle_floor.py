@@ -65,3 +65,23 @@ def test_report_quotes_the_floor_file(tmp_path):
     assert "within reach from gamma = 2" in text
     assert convergence_floor(tmp_path / "missing", targets) is None
     assert "not computed" in markdown_floor(None, targets)[0]
+
+
+def test_settle_floor_script_checks_every_committed_baseline(tmp_path):
+    # the committed designs and tunings, no RL runs: the bound must hold for every input
+    (tmp_path / "raw").symlink_to(settle_floor.RESULTS / "raw", target_is_directory=True)
+    assert settle_floor.main(["--rl-seeds", "0", "--results", str(tmp_path)]) == 0
+    floor = json.loads((tmp_path / "settle_floor.json").read_text())
+    paper, drift = floor["paper"], floor["drift"]
+    assert set(paper["agents"]) == set(settle_floor.BASELINES["paper"])
+    assert paper["slew_ramp_noise_free_settle_s"] == pytest.approx(paper["bound_settle_s"], abs=0.011)
+    for name, check in paper["agents"].items():
+        settle = check["noise_free_settle_s"]
+        assert np.isnan(settle) or settle >= paper["bound_settle_s"] - 0.011, name
+        assert check["min_margin"] > -0.1 and check["max_sensitivity_ratio"] < 1.01, name
+    for name, check in drift["agents"].items():
+        assert check["min_ratio_to_bound"] > 0.99, name
+    sweep = {row["gamma"]: row for row in paper["gain_sweep"]}
+    # a larger gain converges faster, under the bound and in the closed loop alike
+    assert sweep[1.0]["bound_settle_s"] > sweep[4.0]["bound_settle_s"] > sweep[16.0]["bound_settle_s"]
+    assert (tmp_path / "figures" / "settle_floor.png").stat().st_size > 10_000
