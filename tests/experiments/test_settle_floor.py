@@ -61,6 +61,7 @@ def test_report_quotes_the_floor_file(tmp_path):
     assert numbers["drift"]["best_rl_worst_run_ratio"] == pytest.approx(17.6 / 17.5)
     text = "\n".join(markdown_floor(numbers, targets))
     assert "2.25 s for any input" in text and "3% below it" in text and "10.8 A/m" in text
+    assert "worst `ppo_info_stack8` run is 0.6% above it" in text
     assert "gamma = 0.5: 3.4 s vs never" in text and "(ratio 0.51)" in text
     assert "within reach from gamma = 2" in text
     assert convergence_floor(tmp_path / "missing", targets) is None
