@@ -92,19 +92,6 @@ def noise_free(scenario):
     return EpisodeSpec(spec.env_id, {**spec.env_kwargs, "output_noise": 0.0}, spec.dt)
 
 
-def trace_sensitivity(config, field, a_true: float) -> np.ndarray:
-    """``|dM/da|`` at ``a_true`` along a recorded field trace (A/m), from a fresh bank."""
-    from hyst_gym.estimation import ModelBank
-
-    bank = ModelBank(config, n_systems=1)
-    theta = np.array([float(a_true)])
-    out = np.empty(len(field))
-    for index, value in enumerate(field):
-        bank.advance(np.array([value]))
-        out[index] = abs(bank.evaluate(theta)[1][0])
-    return out
-
-
 def agents_of(scenario_name, raw, rl_seeds):
     """(label, agent factory) for every baseline and every trained RL run of the scenario."""
     from baselines.registry import make_agent
@@ -124,7 +111,7 @@ def agents_of(scenario_name, raw, rl_seeds):
 def paper_floor(raw, rl_seeds, progress):
     from baselines.evaluation import run_episodes
     from baselines.scenarios import HELDOUT_SEEDS, SCENARIOS
-    from hyst_gym.estimation.convergence import first_passage
+    from hyst_gym.estimation.convergence import first_passage, sensitivity_along
     from experiments.stats import summarize
 
     scenario = SCENARIOS["paper"]
@@ -148,7 +135,7 @@ def paper_floor(raw, rl_seeds, progress):
         trace = trace[0]
         error = np.abs(trace["a_estimate"] - trace["a_true"])
         allowed = np.interp(trace["time"], time, bound)
-        reached = trace_sensitivity(config, trace["field"], a_true)
+        reached = sensitivity_along(config, trace["field"], a_true)
         cap = np.interp(trace["time"], time, envelope)
         checks[label] = {"noise_free_settle_s": records[0]["settle_time_s"],
                          "min_margin": float(np.min(error - allowed)),

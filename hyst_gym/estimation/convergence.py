@@ -63,14 +63,20 @@ def sensitivity_curve(config: EstimatorConfig, a: float, field_limit: float, fie
     if not config.theta_min <= a <= config.theta_max:
         raise ValueError(f"sensitivity_curve: a = {a!r} lies outside Theta = "
                          f"[{config.theta_min!r}, {config.theta_max!r}]")
-    bank = ModelBank(config, n_systems=1)
     fields = np.arange(1, int(np.floor(field_limit / field_step + 1e-9)) + 1) * field_step
-    sensitivity = np.empty_like(fields)
+    return fields, sensitivity_along(config, fields, a)
+
+
+def sensitivity_along(config: EstimatorConfig, field, a: float) -> np.ndarray:
+    """``|df/da|`` at ``a`` (dimensionless) after each sample of a field path (A/m) that starts
+    demagnetized at H = 0, from the estimator's own bank."""
+    bank = ModelBank(config, n_systems=1)
     theta = np.array([float(a)])
-    for index, field in enumerate(fields):
-        bank.advance(np.array([field]))
+    sensitivity = np.empty(len(field))
+    for index, value in enumerate(np.asarray(field, dtype=np.float64)):
+        bank.advance(np.array([value]))
         sensitivity[index] = abs(bank.evaluate(theta)[1][0])
-    return fields, sensitivity
+    return sensitivity
 
 
 def sensitivity_envelope(time, fields, sensitivity, slew_rate: float, field_limit: float) -> np.ndarray:
@@ -140,4 +146,4 @@ def first_passage(time, error, band: float) -> float:
     return float(np.asarray(time)[below[0]]) if below.size else float("nan")
 
 
-__all__ = ["sensitivity_curve", "sensitivity_envelope", "error_bound", "first_passage"]
+__all__ = ["sensitivity_curve", "sensitivity_along", "sensitivity_envelope", "error_bound", "first_passage"]
