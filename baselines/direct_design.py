@@ -21,6 +21,7 @@ from dataclasses import dataclass, field as dataclass_field
 
 import numpy as np
 
+from .cma_search import cma_minimize
 from .schedules import ExcitationLimits, Schedule
 
 
@@ -75,23 +76,15 @@ def search_direct_design(score, limits: ExcitationLimits, episode_s: float, n_kn
     [-3, 3] (so a knot reaches up to tanh(3) = 99.5 % of ``field_max``), with a fixed
     CMA-ES seed.
     """
-    import cma
-
     if n_knots < 2 or max_evaluations < 1:
         raise ValueError(f"n_knots must be >= 2 and max_evaluations >= 1, got {n_knots} and {max_evaluations}")
 
     def schedule_of(x):
         return KnotSchedule(tuple(float(v) for v in x), float(episode_s), limits.field_max)
 
-    options = {"seed": int(seed) + 1, "maxfevals": int(max_evaluations), "verbose": -9, "bounds": [-3, 3]}
-    strategy = cma.CMAEvolutionStrategy(np.zeros(n_knots), 1.0, options)
-    history = []
-    while not strategy.stop():
-        candidates = strategy.ask()
-        strategy.tell(candidates, [float(score(schedule_of(c))) for c in candidates])
-        history.append(float(strategy.result.fbest))
-    return DirectDesignResult(schedule_of(strategy.result.xbest), float(strategy.result.fbest),
-                              int(strategy.result.evaluations), tuple(history))
+    best, best_score, evaluations, history = cma_minimize(lambda x: score(schedule_of(x)), np.zeros(n_knots), 1.0,
+                                                          3.0, max_evaluations, seed)
+    return DirectDesignResult(schedule_of(best), best_score, evaluations, history)
 
 
 __all__ = ["KnotSchedule", "DirectDesignResult", "search_direct_design"]

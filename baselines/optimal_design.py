@@ -25,6 +25,7 @@ import numpy as np
 
 from hyst_gym.physics import HysteresisParams
 
+from .cma_search import cma_minimize
 from .information import FirstOrderPlant, fisher_information
 from .schedules import ExcitationLimits, Schedule, apply_limits
 
@@ -72,8 +73,6 @@ def design_input(limits: ExcitationLimits, a_values=(7012.0,), period: float = 6
 
     ``a_values`` (A/m): the nominal a, or quantiles of the temperature prior of a.
     """
-    import cma
-
     a_values = np.atleast_1d(np.asarray(a_values, dtype=np.float64))
     n_steps = int(round(period / limits.dt))
 
@@ -85,15 +84,9 @@ def design_input(limits: ExcitationLimits, a_values=(7012.0,), period: float = 6
 
     rng = np.random.default_rng(seed)
     x0 = np.concatenate([[0.0], np.full(n_harmonics, 0.5), rng.uniform(-1, 1, n_harmonics)])
-    options = {"seed": int(seed) + 1, "maxfevals": int(max_evaluations), "verbose": -9, "bounds": [-2, 2]}
-    strategy = cma.CMAEvolutionStrategy(x0, 0.5, options)
-    history = []
-    while not strategy.stop():
-        candidates = strategy.ask()
-        strategy.tell(candidates, [loss(c) for c in candidates])
-        history.append(-float(strategy.result.fbest))
-    best = MultisineDesign(tuple(float(v) for v in strategy.result.xbest), period, limits.field_max)
-    return DesignResult(best, -float(strategy.result.fbest), int(strategy.result.evaluations), tuple(history))
+    best, best_loss, evaluations, history = cma_minimize(loss, x0, 0.5, 2.0, max_evaluations, seed)
+    design = MultisineDesign(tuple(float(v) for v in best), period, limits.field_max)
+    return DesignResult(design, -best_loss, evaluations, tuple(-value for value in history))
 
 
 __all__ = ["MultisineDesign", "DesignResult", "design_input"]

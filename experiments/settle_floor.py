@@ -113,6 +113,7 @@ def paper_floor(raw, rl_seeds, progress):
     from baselines.scenarios import HELDOUT_SEEDS, SCENARIOS
     from hyst_gym.estimation.convergence import first_passage, sensitivity_along
     from experiments.stats import summarize
+    from experiments.survival import censor
 
     scenario = SCENARIOS["paper"]
     config = estimator_of(scenario)
@@ -128,7 +129,7 @@ def paper_floor(raw, rl_seeds, progress):
     records, ramp_trace = run_episodes(ramp, noise_free(scenario), HELDOUT_SEEDS[:1], keep_traces=1)
     result["slew_ramp_noise_free_settle_s"] = records[0]["settle_time_s"]
     records, _ = run_episodes(ramp, scenario.spec(), HELDOUT_SEEDS)
-    result["slew_ramp_heldout"] = summarize(_censored([r["settle_time_s"] for r in records], scenario))
+    result["slew_ramp_heldout"] = summarize(censor([r["settle_time_s"] for r in records], scenario.episode_s)[0])
     checks, traces = {}, {"slew_ramp": ramp_trace[0]}
     for label, factory in progress(agents_of("paper", raw, rl_seeds), "paper agents, noise off"):
         records, trace = run_episodes(factory(), noise_free(scenario), HELDOUT_SEEDS[:1], keep_traces=1)
@@ -144,12 +145,6 @@ def paper_floor(raw, rl_seeds, progress):
     result["agents"] = checks
     curves = {"time": time, "envelope": envelope, "bound": bound, "fields": fields, "sensitivity": sensitivity}
     return result, curves, traces
-
-
-def _censored(settle_times, scenario):
-    from experiments.survival import censor
-
-    return censor(settle_times, scenario.episode_s)[0]
 
 
 def drift_floor(raw, rl_seeds, progress):
