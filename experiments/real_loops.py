@@ -1,4 +1,4 @@
-"""The mismatch tool on measured MnZn ferrite B-H loops (../shared/data/real/jamodel-loops).
+"""The mismatch tool on measured MnZn ferrite B-H loops (data/real/jamodel-loops, shipped with its MIT licence).
 
 Conversion to recordings (documented quasi-static time axis): each measured loop (129
 points, closed, in traversal order) is played twice -- a warm-up cycle, then the scored
@@ -29,7 +29,7 @@ from hyst_gym.diagnose.core import calibrate, physical_params
 from hyst_gym.diagnose.model import Structure, noise_level
 
 MU0 = 4e-7 * np.pi
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "jamodel-loops"
+DATA = Path(__file__).resolve().parents[1] / "data" / "real" / "jamodel-loops"
 RESULTS = Path(__file__).resolve().parent / "results" / "diagnose"
 FIGURES = Path(__file__).resolve().parent.parent / "docs" / "figures" / "diagnose"
 MATERIALS = {"MnZn_ferrite": "MnZn ferrite", "MnZn_HP_ferrite": "MnZn HP ferrite"}

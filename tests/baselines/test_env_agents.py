@@ -1,5 +1,8 @@
 """Agents on the real environments: cross-checks between independent paths."""
 
+import json
+import pathlib
+
 import numpy as np
 import pytest
 
@@ -62,3 +65,15 @@ def test_agents_work_with_sb3_evaluate_policy():
     config = EnvConfig(**PAPER.spec().env_kwargs)
     per_step = (config.a_true - config.initial_estimate) / (config.theta_max - config.theta_min)
     assert idle == pytest.approx(-per_step * PAPER.episode_steps, rel=0.05)
+
+
+def test_tuned_schedule_without_its_tuning_is_an_error_not_the_untuned_default(tmp_path):
+    # the untuned sine settles ~2x slower: playing it under the name "sine" was a silent substitution
+    with pytest.raises(OSError, match=r"'sine' needs its tuned settings: missing .*tune/paper/sine.json"):
+        make_agent("sine", PAPER, tmp_path)
+    with pytest.raises(OSError, match="'chirp' needs its tuned settings"):
+        make_agent("chirp", PAPER)
+    committed = pathlib.Path(__file__).resolve().parents[2] / "experiments" / "results" / "raw"
+    tuned = json.loads((committed / "tune" / "paper" / "sine.json").read_text())["best"]
+    schedule = make_agent("sine", PAPER, committed).schedule
+    assert {name: getattr(schedule, name) for name in tuned} == tuned  # the committed tuning is played
