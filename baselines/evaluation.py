@@ -2,7 +2,7 @@
 
 Every agent (schedule, design, greedy, estimator, RL policy) is evaluated by the same
 function on the same native vector environment, one sub-environment per evaluation
-draw, so all agents see the same draws of temperature, drift and noise (GUIDE §7).
+draw, so all agents see the same draws of temperature, drift and noise (the evaluation protocol in README, "Benchmark").
 
 Per-episode metrics (issue 5, "Experiments"):
 

@@ -1,4 +1,4 @@
-"""Statistics for reporting RL and baseline results (GUIDE §7; Agarwal et al., NeurIPS 2021).
+"""Statistics for reporting RL and baseline results (Agarwal et al., NeurIPS 2021).
 
 An rliable-equivalent implementation, written out so that it is auditable and needs no
 extra dependency:

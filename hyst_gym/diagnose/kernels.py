@@ -12,7 +12,7 @@ parameter is zero:
   susceptibility (one predictor with the tangent, one corrector with the secant), which is
   unconditionally stable (the denominator is >= 1 because chi >= 0);
 * ``thermal_drift``: a lumped coil temperature rise ``theta`` (K) obeys
-  ``theta' = q*H^2 - theta/tau`` (Joule heating ~ I^2 ~ H^2, eq. (11), GUIDE §4), integrated
+  ``theta' = q*H^2 - theta/tau`` (Joule heating ~ I^2 ~ H^2, eq. (11)), integrated
   exactly with H^2 held at its step mean, and ``a(T) = a*(T_amb + theta)/T_amb`` (4)
   (a proportional to absolute temperature); optionally ``Ms(T) = Ms*(1 - beta*theta)``.
 
@@ -190,7 +190,7 @@ def second_order_system(stiffness, damping, gain):
 
 
 def first_order_system(rate, gain):
-    """State space of ``y' = -rate*y + gain*u`` (the scalar plant of GUIDE §2)."""
+    """State space of ``y' = -rate*y + gain*u`` (the scalar plant of the paper's §4.1)."""
     return np.array([[-rate]]), np.array([gain]), np.array([1.0])
 
 

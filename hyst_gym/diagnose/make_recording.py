@@ -22,7 +22,7 @@ Effects at ``strength = 1`` (the default; strength scales the effect's size):
 * ``rod_dynamics``: the finite-element rod (10) instead of the lumped mass: a light tip mass
   (0.02-0.05 kg at strength 1; ``ML / strength``) and a low Kelvin-Voigt damping
   (cD 1.5e4-6e4 Pa s, i.e. a loss factor of a few % at the second mode instead of the
-  GUIDE's 3e6 Pa s, which makes every mode above the first overdamped), so that the second
+  default 3e6 Pa s of RodParams, which makes every mode above the first overdamped), so that the second
   longitudinal mode (9.5-11 kHz, below the 20-30 kHz Nyquist frequency) responds to the
   broadband drive these recordings use (a repeated 3-12 kHz chirp on top of the usual
   excitation, as a rig that characterizes rod modes would apply; ``broadband=True`` gives
@@ -50,7 +50,7 @@ GENERATOR_EFFECTS = EFFECTS + ("none",)
 OVERSAMPLE = 4
 PAPER_ZETAHAT = 1.3724e-2  # m/s^2 per A/m, eq. (13)
 
-#: Rod data (GUIDE §2) used for rod_dynamics, each drawn within +-5 %; the tip mass and the
+#: Rod data (paper §2.2) used for rod_dynamics, each drawn within +-5 %; the tip mass and the
 #: Kelvin-Voigt damping cD are drawn separately (see :func:`_rod_state_space`).
 ROD = dict(Y=3.0e10, rho=9250.0, L=0.115, A=1.2668e-4, kL=2e6, cL=1e3)
 #: Range of the Kelvin-Voigt damping for rod_dynamics, Pa s (log-uniform draw).
@@ -96,7 +96,7 @@ def _broadband_drive(rng, time, amplitude):
 
 def _rod_state_space(rng, n_elements=12, strength=1.0):
     """FEM rod (10) from :mod:`hyst_gym.physics.fem` with rod data drawn within +-5 % of the
-    GUIDE's, a light tip mass and a low Kelvin-Voigt damping drawn from ``rng``; returns
+    defaults, a light tip mass and a low Kelvin-Voigt damping drawn from ``rng``; returns
     (A, B, C, static tip compliance in m/N)."""
     tip_mass = rng.uniform(*ROD_TIP_MASS) / max(strength, 1e-3)
     kelvin_voigt = float(np.exp(rng.uniform(*np.log(ROD_KELVIN_VOIGT))))

@@ -3,17 +3,17 @@
 Base structures (``transducer``):
 
 * ``"none"`` -- magnetization only (no displacement channel to explain);
-* ``"first_order"`` -- displacement ``y' = -lam*y + nu*(M - M0)`` (scalar plant, GUIDE §2);
+* ``"first_order"`` -- displacement ``y' = -lam*y + nu*(M - M0)`` (scalar plant, paper §4.1);
 * ``"lumped"`` -- linearized lumped model (13) about a bias magnetization M0:
   ``x'' + chat*x' + khat*x = zetahat*(M - M0)``;
 * ``"lumped_nonlinear"`` -- nonlinear lumped model (12): ``x'' + chat*x' + khat*x = zeta2*(M^2 - M0^2)``;
 * ``"fem"`` -- the finite-element rod (10) of :class:`hyst_gym.physics.fem.FEMRod`
-  (``FEM_ELEMENTS`` elements, GUIDE rod data) linearized about M0: tip force
+  (``FEM_ELEMENTS`` elements, paper §2.2 rod data) linearized about M0: tip force
   ``zeta_fem*(M - M0)`` (zeta_fem = 2*zeta*M0 in N per A/m); with ``fit_mechanics`` the
   Young's modulus ``Y``, the tip mass ``ML`` and the Kelvin-Voigt damping ``cD`` are fitted
-  too (they set the rod's modes), else they stay at the GUIDE's values.
+  too (they set the rod's modes), else they stay at RodParams()'s values.
 
-Extensions (the GUIDE §6 vocabulary), each with named physical parameters and each equal to
+Extensions (the mismatch tool's vocabulary), each with named physical parameters and each equal to
 the base model when those parameters vanish:
 
 ==============================  ============================================================
@@ -68,7 +68,7 @@ PAPER_KHAT = 6.4251e7   # 1/s^2
 PAPER_MS = 7.65e5       # A/m
 #: Elements of the ``fem`` base model's rod: its first two modes within ~1 % of a fine mesh.
 FEM_ELEMENTS = 8
-#: Rod data the ``fem`` base model fits (the others stay at the GUIDE's RodParams()).
+#: Rod data the ``fem`` base model fits (the others stay at RodParams()).
 FEM_ROD_NAMES = ("Y", "ML", "cD")
 
 

@@ -101,7 +101,7 @@ def minmax_one(grid, g, theta_hat, sign, gradient, xs, ys, hull):
     ``g`` (G,) holds ``f(theta_i) - f(thetahat)`` on the grid, ``sign`` is sign(ytilde)
     (+1 or -1), ``gradient`` is df/dtheta at thetahat. With ``h = sign*g`` and the point
     (thetahat, 0) added, ``nu_star = -conv(h)(thetahat)`` and ``phi_star = sign*slope``
-    where slope is that of conv(h) at thetahat (GUIDE §3: conv(g) for sign +1, conc(g)
+    where slope is that of conv(h) at thetahat (eq. (15): conv(g) for sign +1, conc(g)
     for sign -1). At a vertex of the envelope the gradient is clipped into the
     subdifferential [left slope, right slope] (a valid subgradient; it *is* the gradient
     where g is locally convex); at an end of Theta the missing side is unbounded.

@@ -4,7 +4,7 @@
 under the parameter ``a = theta`` (a hysteretic, history-dependent function). The bank
 runs one hysteresis state per grid node, all driven by the measured field of their
 system, and gives ``f``, ``df/dtheta`` and ``d2f/dtheta2`` at any ``thetahat`` in Theta
-by C1 cubic Hermite interpolation that is exact at the nodes (GUIDE §3).
+by C1 cubic Hermite interpolation that is exact at the nodes (``docs/model.md``, estimation).
 """
 
 from __future__ import annotations

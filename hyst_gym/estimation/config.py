@@ -24,7 +24,7 @@ import scipy.linalg
 
 from ..physics.hysteresis import DEFAULT_MAX_FIELD_STEP, HysteresisParams
 
-#: Lumped-model coefficients (13) from the paper, §2.2 (see GUIDE §2).
+#: Lumped-model coefficients (13) from the paper, §2.2 (eq. (13)).
 PAPER_KHAT = 6.4251e7  # 1/s^2
 PAPER_CHAT = 7.8899e3  # 1/s
 PAPER_ZETAHAT = 1.3724e-2  # m s^-2 per A/m

@@ -2,7 +2,7 @@
 
 Near the truth (|thetahat - a| small against the curvature of f in theta) the cost
 ``g(theta) = f(u, theta) - f(u, thetahat)`` of (15) is locally linear, so the min-max
-gives ``nu_star = 0`` and ``phi_star = df/da`` (GUIDE §3), and the scalar estimator (14)
+gives ``nu_star = 0`` and ``phi_star = df/da`` (eq. (15)), and the scalar estimator (14)
 on the plant ``y' = -lam*y + nu*M`` reduces to the linear comparison system
 
     e'      = -gamma*nu*phi(t)*ytilde          e = thetahat - a      (A/m)

@@ -396,7 +396,7 @@ class MinMaxEstimator(AdaptiveEstimator):
         thetahat' = -gamma*y_eps*phi_star
 
     (nu_star, phi_star) / (a_star, phi_star) solve the min-max problem (15) on the bank
-    in closed form (lower convex / upper concave envelope, GUIDE §3), with the sign of
+    in closed form (lower convex / upper concave envelope, eq. (15)), with the sign of
     ytilde (scalar) or y_eps (vector). V = y_eps^2 + theta_tilde^2/gamma (scalar) and
     V = gamma*ytilde^T P ytilde + theta_tilde^2 (vector, (26)) do not increase.
     """

@@ -1,7 +1,7 @@
 """The min-max problem (15)/(25) on a grid: closed form, envelopes for plots.
 
 For ``g(theta) = f(u, theta) - f(u, thetahat)`` sampled at the bank nodes, with the
-point (thetahat, 0) added (GUIDE §3):
+point (thetahat, 0) added (eq. (15)):
 
 * sign(ytilde) = +1: ``nu_star = -conv(g)(thetahat)``, ``phi_star`` = slope of conv(g);
 * sign(ytilde) = -1: ``nu_star = conc(g)(thetahat)``, ``phi_star`` = slope of conc(g);

@@ -10,7 +10,7 @@ with ``He = H + alpha*M``, ``Man = Man(He)`` (Ising or Langevin), ``Man' = dMan/
 the change purely reversible after a reversal until ``M`` meets ``Man``. This is the
 derivative of ``M = (1 - c)*Mirr + c*Man`` (5) with the irreversible law
 ``dMirr/dH = dhat*(Man - Mirr)/(k*delta - alpha*(Man - Mirr))``; the paper's printed
-denominator ``1 + c*alpha*Man'`` is a transcription error (see ``GUIDE.md`` §1).
+denominator ``1 + c*alpha*Man'`` is a transcription error (derivation in ``docs/model.md``).
 
 Integration: each increment of H between two samples is cut into equal substeps of at
 most ``max_field_step`` A/m and integrated by the explicit midpoint rule with ``delta``

@@ -1,4 +1,4 @@
-"""Temperature: a(T) of eq. (4) and a lumped thermal model of the drive coil (GUIDE §4).
+"""Temperature: a(T) of eq. (4) and a lumped thermal model of the drive coil (eqs. (4) and (11)).
 
 ``a`` is proportional to absolute temperature, (4) ``a = Hh*T/Tc``, anchored so that
 ``a = a_ref`` (7012 A/m, the paper's room-temperature value) at ``T_ref``::

@@ -25,7 +25,7 @@ Models
 
 The rod data and the bias
 -------------------------
-:class:`RodParams` holds the Terfenol-D rod of GUIDE §2. Lumping it with the rod's
+:class:`RodParams` holds the Terfenol-D rod of the paper's §2.2. Lumping it with the rod's
 static (linear) mode shape gives ``m = ML + rho*A*L/3``, ``k = kL + Y*A/L``,
 ``c = cL + cD*A/L`` and the tip forcing ``zeta*M**2`` with ``zeta = Y*A*gamma`` and
 ``gamma = (3/2)*lambda_s/Ms**2``. Linearizing ``zeta*M**2`` about a bias ``M0``,
@@ -90,7 +90,7 @@ class _Transducer:
 
 @dataclass(frozen=True)
 class RodParams:
-    """Terfenol-D rod with a tip mass, spring and damper (GUIDE §2, paper Fig. 3, eq. 10).
+    """Terfenol-D rod with a tip mass, spring and damper (paper §2.2, Fig. 3, eq. 10).
 
     Attributes
     ----------

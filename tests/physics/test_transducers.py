@@ -64,7 +64,7 @@ def test_paper_coefficients_and_the_bias():
     lumped = LumpedLinear()
     assert lumped.natural_frequency == pytest.approx(1275.7, abs=0.5)
     assert lumped.damping_ratio == pytest.approx(0.49, abs=0.005)
-    # 150 um static displacement at M = 7e5 A/m (GUIDE §2)
+    # 150 um static displacement at M = 7e5 A/m (the rod data of RodParams, paper §2.2)
     static = lumped.discretize(1e-4).steady_state(7e5)[0, 0]
     assert static == pytest.approx(lumped.coupling * 7e5 / lumped.stiffness, rel=1e-12)
     assert static == pytest.approx(150e-6, rel=0.01)
@@ -73,7 +73,7 @@ def test_paper_coefficients_and_the_bias():
     assert rod.lumped_damping / rod.lumped_mass == pytest.approx(7.8899e3, rel=1.5e-3)
     # The bias that reproduces zetahat: 2*zeta*M0/m = 1.3724e-2  ->  M0 = 3.839e5 A/m
     m0 = rod.bias_magnetization()
-    # independent hand computation from the raw rod data of GUIDE §2
+    # independent hand computation from the raw rod data of RodParams (paper §2.2)
     mass = rod.ML + rod.rho * rod.A * rod.L / 3
     force_per_m2 = rod.Y * rod.A * 1.5 * rod.saturation_magnetostriction / rod.Ms ** 2
     assert m0 == pytest.approx(1.3724e-2 * mass / (2 * force_per_m2), rel=1e-12)
