@@ -14,22 +14,29 @@ import pathlib
 
 import numpy as np
 
+from hyst_gym.envs.registration import ENV_IDS
+
 from .evaluation import run_episodes
-from .registry import ESTIMATOR_AGENTS, make_agent
+from .registry import ALL_NAMED_AGENTS, ESTIMATOR_AGENTS, make_agent
+from .rl import PolicyAgent
 from .scenarios import ESTIMATION_ID, EXCITATION_ID, HELDOUT_SEEDS, SCENARIOS
 
 
 def configure_parser(parser):
-    parser.add_argument("--agent", required=True, help="baseline name or path to a trained model")
-    parser.add_argument("--env", default=None, help=f"environment id (default {EXCITATION_ID}; "
-                        f"{ESTIMATION_ID} for estimator agents)")
-    parser.add_argument("--scenario", choices=sorted(SCENARIOS), default="paper")
-    parser.add_argument("--episodes", type=int, default=50)
-    parser.add_argument("--seed", type=int, default=None, help="first seed (default: the held-out set)")
+    parser.add_argument("--agent", required=True,
+                        help=f"baseline name ({', '.join(ALL_NAMED_AGENTS)}) or the folder/zip of a trained model")
+    parser.add_argument("--env", choices=sorted(ENV_IDS), default=None,
+                        help=f"environment id (default {EXCITATION_ID}; {ESTIMATION_ID} for estimator agents)")
+    parser.add_argument("--scenario", choices=sorted(SCENARIOS), default="paper",
+                        help="environment settings (default: the paper's case)")
+    parser.add_argument("--episodes", type=int, default=50,
+                        help=f"episodes to run (> 0; default 50, the {len(HELDOUT_SEEDS)} held-out draws)")
+    parser.add_argument("--seed", type=int, default=None,
+                        help="first seed, >= 0; episode i uses seed + i (default: the held-out set)")
     parser.add_argument("--artifacts", default=str(COMMITTED_ARTIFACTS),
                         help="folder with tuned schedules and designs (default: the committed "
                              "experiments/results/raw of this checkout, from any working directory)")
-    parser.add_argument("--out", required=True)
+    parser.add_argument("--out", required=True, help="output folder (episodes.csv is written into it)")
 
 
 #: the committed tuning and design results beside the package (present in a source checkout)
@@ -47,15 +54,32 @@ def write_episodes_csv(path, records, extra=None):
     return path
 
 
+def _check_policy_fits(agent: PolicyAgent, spec, label: str, path: str) -> None:
+    """A policy trained elsewhere is refused in our words, before SB3 finds the mismatch."""
+    env = spec.make()
+    try:
+        agent.check_env(label, int(np.prod(env.observation_space.shape)), int(np.prod(env.action_space.shape)))
+    except ValueError as error:
+        raise ValueError(f"--agent {path}: {error}") from None
+    finally:
+        env.close()
+
+
 def main(args) -> int:
     from experiments.stats import iqm
     from experiments.survival import censor
 
     if args.episodes <= 0:
         raise ValueError(f"--episodes must be > 0, got {args.episodes}")
+    if args.seed is not None and args.seed < 0:
+        raise ValueError(f"--seed must be >= 0, got {args.seed}")
+    if not pathlib.Path(args.artifacts).is_dir():
+        raise ValueError(f"--artifacts {args.artifacts}: no such folder")
     scenario = SCENARIOS[args.scenario]
     env_id = args.env or (ESTIMATION_ID if args.agent in ESTIMATOR_AGENTS else EXCITATION_ID)
     agent = make_agent(args.agent, scenario, args.artifacts)
+    if isinstance(agent, PolicyAgent):
+        _check_policy_fits(agent, scenario.spec(env_id), f"{env_id} ({scenario.name})", args.agent)
     if args.seed is None:
         seeds = list(HELDOUT_SEEDS[:args.episodes])
         if args.episodes > len(HELDOUT_SEEDS):

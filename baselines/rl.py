@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import pathlib
+import zipfile
 
 import numpy as np
 
@@ -58,9 +59,12 @@ class PolicyAgent(Agent):
     :meth:`reset` (all of them).
     """
 
-    def __init__(self, model, n_stack: int = 1, deterministic: bool = True, name: str = "policy"):
+    def __init__(self, model, n_stack: int = 1, deterministic: bool = True, name: str = "policy",
+                 trained_on: str | None = None):
         super().__init__()
         self.model, self.n_stack, self.deterministic, self.name = model, int(n_stack), deterministic, name
+        #: where the policy was trained ("env id (scenario)"), for error messages; None if unknown
+        self.trained_on = trained_on
         self.recurrent = is_recurrent(model)
         if self.n_stack < 1:
             raise ValueError(f"n_stack must be >= 1, got {n_stack}")
@@ -76,12 +80,35 @@ class PolicyAgent(Agent):
         model_path = path / "model.zip" if path.is_dir() else path
         if not model_path.exists():
             raise OSError(f"no trained model at {model_path}")
+        if not zipfile.is_zipfile(model_path):
+            raise ValueError(f"{model_path}: not a saved Stable-Baselines3 model (not a zip file)")
         config_path = model_path.parent / "config.json"
-        config = json.loads(config_path.read_text()) if config_path.exists() else {}
+        try:
+            config = json.loads(config_path.read_text()) if config_path.exists() else {}
+        except json.JSONDecodeError as error:
+            raise ValueError(f"{config_path}: not valid JSON ({error})") from None
+        if not isinstance(config, dict):
+            raise ValueError(f"{config_path}: must hold a JSON object, got {type(config).__name__}")
         guessed = next((a for a in ("recurrent_ppo", "sac") if a in model_path.name.lower()), "ppo")
         algo = config.get("algo") or guessed
         model = algorithm_class(algo).load(model_path, device=device)
-        return cls(model, config.get("n_stack", 1), name=name or algo)
+        trained_on = config.get("env_id") and (f"{config['env_id']} ({config['scenario']})" if config.get("scenario")
+                                               else config["env_id"])
+        return cls(model, config.get("n_stack", 1), name=name or algo, trained_on=trained_on)
+
+    def check_env(self, env: str, observation_size: int, action_size: int) -> None:
+        """Raise a one-line ``ValueError`` if this policy cannot play ``env`` (a label such
+        as "env id (scenario)"), whose observations have ``observation_size`` entries and
+        actions ``action_size``: the policy's input is ``n_stack`` such observations, its
+        output one such action."""
+        policy_input = int(np.prod(self.model.observation_space.shape))
+        policy_output = int(np.prod(self.model.action_space.shape))
+        if policy_input == self.n_stack * observation_size and policy_output == action_size:
+            return
+        frames = f"{self.n_stack} frames of {policy_input / self.n_stack:g}" if self.n_stack > 1 else "one frame"
+        raise ValueError(f"policy {self.name!r} was trained on {self.trained_on or 'another environment'} with "
+                         f"observations of {policy_input} entries ({frames}) and actions of {policy_output}, but "
+                         f"{env} has observations of {observation_size} entries and actions of {action_size}")
 
     def reset(self, seed=None):
         super().reset(seed)

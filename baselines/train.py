@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import copy
 import csv
+import inspect
 import json
 import pathlib
 import re
@@ -27,10 +28,21 @@ import time
 
 import numpy as np
 
+from hyst_gym.envs.registration import ENV_IDS
+
 from .environment import EpisodeSpec, make_sb3_vec_env
-from .rewards import REWARDS
 from .rl import ALGORITHMS, RECURRENT_ALGORITHMS, PolicyAgent, algorithm_class
 from .scenarios import SCENARIOS, VALIDATION_SEEDS, scenario_spec
+
+#: the names of :data:`baselines.rewards.REWARDS`, repeated here because that module needs
+#: Stable-Baselines3 and ``hyst-gym train --help`` must work without the rl extra
+#: (tests/baselines/test_cli.py checks that the two agree)
+REWARD_NAMES = ("dense", "information", "band")
+
+#: constructor arguments of the SB3 algorithms that train() sets itself (not hyperparameters)
+SET_BY_TRAIN = frozenset({"self", "policy", "env", "seed", "device", "verbose", "tensorboard_log"})
+#: constructor arguments of the SB3 policies that the algorithm sets (not policy_kwargs)
+SET_BY_ALGORITHM = frozenset({"self", "observation_space", "action_space", "lr_schedule"})
 
 #: Default hyperparameters (small networks: the observation is a short stacked vector).
 DEFAULT_HYPERPARAMS = {
@@ -60,24 +72,33 @@ def default_n_stack(algo) -> int:
 
 
 def configure_parser(parser):
-    parser.add_argument("--algo", choices=ALGORITHMS, required=True)
-    parser.add_argument("--env", default="hyst_gym/Excitation-v0", help="registered environment id")
+    parser.add_argument("--algo", choices=ALGORITHMS, required=True,
+                        help="learning algorithm: PPO or SAC (Stable-Baselines3), or RecurrentPPO with an LSTM "
+                             "policy (sb3-contrib)")
+    parser.add_argument("--env", choices=sorted(ENV_IDS), default="hyst_gym/Excitation-v0",
+                        help="environment id (default hyst_gym/Excitation-v0)")
     parser.add_argument("--scenario", choices=sorted(SCENARIOS), default="paper",
                         help="environment settings (default: the paper's case)")
-    parser.add_argument("--timesteps", type=int, required=True, help="total environment steps")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", required=True, help="output folder")
+    parser.add_argument("--timesteps", type=int, required=True, help="total environment steps (> 0)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the policy and of the environments (>= 0, "
+                        "default 0)")
+    parser.add_argument("--out", required=True, help="output folder (created if missing)")
     parser.add_argument("--n-envs", type=int, default=8, help="parallel sub-environments (default 8)")
     parser.add_argument("--n-stack", type=int, default=None,
                         help=f"frames of history the policy sees (1 = none; default {DEFAULT_N_STACK}, "
                              "and 1 for recurrent_ppo, which must be 1)")
-    parser.add_argument("--reward", choices=REWARDS, default="dense",
+    parser.add_argument("--reward", choices=REWARD_NAMES, default="dense",
                         help="training reward: the env's own dense error (default), the Fisher-information "
                              "increment (uses no truth), or -1 per step outside the settle band")
-    parser.add_argument("--checkpoint-every", type=int, default=10_000, help="env steps between checkpoints")
-    parser.add_argument("--eval-every", type=int, default=0, help="env steps between learning-curve points (0: off)")
-    parser.add_argument("--eval-episodes", type=int, default=8)
-    parser.add_argument("--hyperparams", default="{}", help="JSON overrides of the algorithm's hyperparameters")
+    parser.add_argument("--checkpoint-every", type=int, default=10_000,
+                        help="env steps between checkpoints (0: none; default 10000)")
+    parser.add_argument("--eval-every", type=int, default=0,
+                        help="env steps between learning-curve points (0: only the final one when resuming "
+                             "or never; default 0)")
+    parser.add_argument("--eval-episodes", type=int, default=8,
+                        help=f"validation episodes per learning-curve point (1..{len(VALIDATION_SEEDS)}, default 8)")
+    parser.add_argument("--hyperparams", default="{}",
+                        help='JSON object overriding the algorithm\'s hyperparameters, e.g. \'{"n_steps": 128}\'')
     parser.add_argument("--resume", action="store_true", help="continue from the newest checkpoint in --out")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
@@ -87,14 +108,51 @@ def _positive(name, value):
         raise ValueError(f"--{name} must be > 0, got {value}")
 
 
-def main(args) -> int:
+def _nonnegative(name, value):
+    if value < 0:
+        raise ValueError(f"--{name} must be >= 0, got {value}")
+
+
+def parse_hyperparams(text: str) -> dict:
+    """The ``--hyperparams`` JSON object (a ``ValueError`` naming the flag otherwise)."""
     try:
-        overrides = json.loads(args.hyperparams)
+        overrides = json.loads(text)
     except json.JSONDecodeError as error:
         raise ValueError(f"--hyperparams is not valid JSON: {error}") from None
+    if not isinstance(overrides, dict):
+        raise ValueError(f"--hyperparams must be a JSON object of name: value, got {type(overrides).__name__} "
+                         f"{text.strip()[:40]!r}")
+    return overrides
+
+
+def check_hyperparams(algo: str, hyperparams: dict) -> None:
+    """Raise a ``ValueError`` naming any hyperparameter (or ``policy_kwargs`` entry) that
+    the algorithm's constructor (or its policy's) does not take, and the ones it takes.
+    Imports the algorithm (Stable-Baselines3 / sb3-contrib)."""
+    cls = algorithm_class(algo)
+    accepted = sorted(name for name in inspect.signature(cls.__init__).parameters
+                      if name not in SET_BY_TRAIN and not name.startswith("_"))
+    unknown = sorted(set(hyperparams) - set(accepted))
+    if unknown:
+        raise ValueError(f"--hyperparams: unknown hyperparameter(s) {', '.join(unknown)} for {algo}; "
+                         f"accepted: {', '.join(accepted)}")
+    policy_kwargs = hyperparams.get("policy_kwargs")
+    if policy_kwargs is None:
+        return
+    if not isinstance(policy_kwargs, dict):
+        raise ValueError(f"--hyperparams: policy_kwargs must be a JSON object, got {policy_kwargs!r}")
+    policy = cls.policy_aliases[POLICIES[algo]]
+    accepted = sorted(name for name in inspect.signature(policy.__init__).parameters if name not in SET_BY_ALGORITHM)
+    unknown = sorted(set(policy_kwargs) - set(accepted))
+    if unknown:
+        raise ValueError(f"--hyperparams: unknown policy_kwargs key(s) {', '.join(unknown)} for {algo}'s "
+                         f"{POLICIES[algo]}; accepted: {', '.join(accepted)}")
+
+
+def main(args) -> int:
     train(args.algo, scenario_spec(args.scenario, args.env), args.timesteps, args.seed, args.out,
           n_envs=args.n_envs, n_stack=args.n_stack, checkpoint_every=args.checkpoint_every,
-          eval_every=args.eval_every, eval_episodes=args.eval_episodes, hyperparams=overrides,
+          eval_every=args.eval_every, eval_episodes=args.eval_episodes, hyperparams=parse_hyperparams(args.hyperparams),
           resume=args.resume, progress=not args.no_progress, scenario=args.scenario, reward=args.reward)
     return 0
 
@@ -216,17 +274,31 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=None,
     ``n_stack`` None means :func:`default_n_stack` (8 frames; 1 for a recurrent policy);
     ``reward`` names the training reward (:data:`baselines.rewards.REWARDS`). The learning
     curve always scores the benchmark's metrics, whatever the reward."""
-    import torch
-
+    # every setting is checked before anything is written: a bad one leaves no output folder
     if algo not in ALGORITHMS:
         raise ValueError(f"--algo must be one of {ALGORITHMS}, got {algo!r}")
+    if spec.env_id not in ENV_IDS:
+        raise ValueError(f"--env {spec.env_id!r} is not a hyst-gym environment; expected one of {sorted(ENV_IDS)}")
+    if reward not in REWARD_NAMES:
+        raise ValueError(f"--reward must be one of {REWARD_NAMES}, got {reward!r}")
     n_stack = default_n_stack(algo) if n_stack is None else n_stack
     for name, value in (("timesteps", timesteps), ("n-envs", n_envs), ("n-stack", n_stack)):
         _positive(name, value)
+    for name, value in (("seed", seed), ("checkpoint-every", checkpoint_every), ("eval-every", eval_every)):
+        _nonnegative(name, value)
+    if not 1 <= eval_episodes <= len(VALIDATION_SEEDS):
+        raise ValueError(f"--eval-episodes must be in 1..{len(VALIDATION_SEEDS)} (the validation set has "
+                         f"{len(VALIDATION_SEEDS)} draws), got {eval_episodes}")
     if algo in RECURRENT_ALGORITHMS and n_stack != 1:
         raise ValueError(f"--n-stack must be 1 for {algo} (the LSTM keeps the history), got {n_stack}")
-    torch.set_num_threads(1)
+    check_hyperparams(algo, hyperparams or {})
     out = pathlib.Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} exists and is not a folder")
+
+    import torch
+
+    torch.set_num_threads(1)
     out.mkdir(parents=True, exist_ok=True)
     wall_start = time.time()  # learning-curve rows report wall time since this call
     # deep copies: SB3 writes into policy_kwargs (SAC adds use_sde), which must reach neither
@@ -283,5 +355,5 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=None,
     return out / "model.zip"
 
 
-__all__ = ["DEFAULT_HYPERPARAMS", "POLICIES", "DEFAULT_N_STACK", "default_n_stack", "configure_parser", "main",
-           "train", "record_learning_point", "changed_settings"]
+__all__ = ["DEFAULT_HYPERPARAMS", "POLICIES", "DEFAULT_N_STACK", "REWARD_NAMES", "default_n_stack", "configure_parser",
+           "main", "parse_hyperparams", "check_hyperparams", "train", "record_learning_point", "changed_settings"]

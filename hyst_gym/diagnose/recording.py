@@ -1,4 +1,4 @@
-"""Recordings: the mismatch tool's input (GUIDE §6).
+"""Recordings: the mismatch tool's input (format: ``docs/recording-format.md``).
 
 A recording is a CSV file with a header row, SI units, one sample per row:
 
@@ -7,7 +7,8 @@ column             unit    required
 =================  ======  ==========================================================
 ``time``           s       yes, strictly increasing
 ``field``          A/m     yes, or ``current`` (A) with ``turns_per_meter`` in the sidecar
-``magnetization``  A/m     at least one of magnetization / displacement
+``magnetization``  A/m     at least one of magnetization / flux_density / displacement
+``flux_density``   T       instead of magnetization: B, read as M = B/mu0 - H
 ``displacement``   m
 ``temperature``    K       optional
 =================  ======  ==========================================================
@@ -33,7 +34,9 @@ import numpy as np
 MIN_SAMPLES = 200
 
 OUTPUT_CHANNELS = ("magnetization", "displacement")
-KNOWN_COLUMNS = ("time", "field", "current", "magnetization", "displacement", "temperature")
+KNOWN_COLUMNS = ("time", "field", "current", "magnetization", "flux_density", "displacement", "temperature")
+#: Vacuum permeability, H/m (B = mu0*(H + M)).
+MU0 = 4e-7 * math.pi
 
 
 @dataclass(frozen=True)
@@ -78,8 +81,8 @@ class Recording:
         steps = np.diff(time)
         if np.any(steps <= 0):
             i = int(np.argmax(steps <= 0)) + 1
-            raise ValueError(f"{where}: row {i + 2}: time {time[i]!r} s is not greater than the "
-                             f"previous {time[i - 1]!r} s (time must be strictly increasing)")
+            raise ValueError(f"{where}: row {i + 2}: time {float(time[i])!r} s is not greater than the "
+                             f"previous {float(time[i - 1])!r} s (time must be strictly increasing)")
         if time.size < MIN_SAMPLES:
             raise ValueError(f"{where}: only {time.size} samples; at least {MIN_SAMPLES} are needed "
                              f"to split the recording into a fitting block and a held-out block")
@@ -110,7 +113,7 @@ def _column_array(values, name, where):
     bad = ~np.isfinite(arr)
     if bad.any():
         i = int(np.argmax(bad))
-        raise ValueError(f"{where}: row {i + 2}, column '{name}': value {arr[i]!r} is not finite")
+        raise ValueError(f"{where}: row {i + 2}, column '{name}': value {float(arr[i])!r} is not finite")
     arr.setflags(write=False)
     return arr
 
@@ -154,8 +157,11 @@ def read_recording(path) -> Recording:
     if "field" not in header and "current" not in header:
         raise ValueError(f"{where}: row 1: missing column 'field' (or 'current' with turns_per_meter "
                          f"in the sidecar)")
-    if not any(name in header for name in OUTPUT_CHANNELS):
-        raise ValueError(f"{where}: row 1: needs a 'magnetization' or a 'displacement' column")
+    if not any(name in header for name in OUTPUT_CHANNELS + ("flux_density",)):
+        raise ValueError(f"{where}: row 1: needs a 'magnetization' or a 'displacement' column "
+                         "('flux_density' in T may stand for magnetization)")
+    if "magnetization" in header and "flux_density" in header:
+        raise ValueError(f"{where}: row 1: give 'magnetization' or 'flux_density', not both")
     wanted = [name for name in KNOWN_COLUMNS if name in header]
     index = {name: header.index(name) for name in wanted}
     data = {name: [] for name in wanted}
@@ -188,9 +194,11 @@ def read_recording(path) -> Recording:
             raise ValueError(f"{where}: column 'current' needs a positive number 'turns_per_meter' (1/m) "
                              f"in the sidecar {sidecar_path(path).name}, got {turns!r}")
         field = np.array(data["current"]) * float(turns)  # H = n*I, eq. (11)
+    magnetization = np.array(data["magnetization"]) if "magnetization" in data else None
+    if "flux_density" in data:
+        magnetization = np.array(data["flux_density"]) / MU0 - field  # B = mu0*(H + M), B in T
     return Recording(
-        time=np.array(data["time"]), field=field,
-        magnetization=np.array(data["magnetization"]) if "magnetization" in data else None,
+        time=np.array(data["time"]), field=field, magnetization=magnetization,
         displacement=np.array(data["displacement"]) if "displacement" in data else None,
         temperature=np.array(data["temperature"]) if "temperature" in data else None,
         metadata=metadata, source=where,

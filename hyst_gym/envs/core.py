@@ -29,10 +29,11 @@ from ..estimation.bank import ModelBank
 from ..estimation.config import EstimatorConfig
 from ..estimation.config import FirstOrderPlant as EstimatorFirstOrder
 from ..estimation.config import LumpedPlant
-from ..estimation.estimators import make_estimator
+from ..estimation.estimators import ESTIMATORS, make_estimator
 from ..physics import FirstOrderPlant, LumpedLinear, LumpedNonlinear
 from .config import MECHANICAL_ESTIMATOR_GAMMA, EnvConfig
-from .kernels import clip_actions, excitation_step, fill_info, fill_observation, finish_step, plant_step
+from .kernels import (announce_compilation, clip_actions, excitation_step, fill_info, fill_observation, finish_step,
+                      plant_step)
 
 EXCITATION = "excitation"
 ESTIMATION = "estimation"
@@ -50,6 +51,9 @@ OUTPUT_BOUND = 2.0
 #: observation bound of the temperature sensor, in units of TEMPERATURE_SCALE from T_ref
 TEMPERATURE_BOUND = 5.0
 TEMPERATURE_SCALE = 10.0  # K
+
+#: the options ``reset`` accepts (see :meth:`BatchSimulator._checked_options`)
+RESET_OPTIONS = ("initial_temperature", "ambient_drift_rate", "a_true", "a_estimate")
 
 INFO_KEYS = ("a_true", "a_estimate", "estimation_error", "temperature", "field", "magnetization", "output",
              "time", "pe_integrand", "curvature_sign", "stroke_margin", "temperature_margin", "penalty")
@@ -137,6 +141,50 @@ def action_size(mode: str) -> int:
     return 2 if mode == IDENTIFICATION else 1
 
 
+#: dtype kinds an action array may have: signed, unsigned integers and floats (not bool,
+#: complex, strings or objects, which ``np.asarray(..., dtype=float)`` would turn into nan or accept)
+NUMERIC_KINDS = "iuf"
+
+
+def _brief_repr(value, width: int = 60) -> str:
+    """``repr(value)`` on one line, shortened to ``width`` characters (for error messages)."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= width else text[:width - 3] + "..."
+
+
+def action_array(action, shape: tuple, name: str = "action") -> np.ndarray:
+    """``action`` as a float64 array of exactly ``shape``, else a one-line ``ValueError``
+    that says what was given (None, something that is not numbers, another shape).
+
+    The values themselves (finite, within [-1, 1]) are checked by the step kernels."""
+    if isinstance(action, np.ndarray) and action.shape == shape and action.dtype.kind in NUMERIC_KINDS:
+        return action.astype(np.float64, copy=False)
+    if action is None:
+        raise ValueError(f"{name} is None; expected an array of numbers of shape {shape}")
+    try:
+        array = np.asarray(action)
+    except (TypeError, ValueError):  # ragged nested sequences
+        array = None
+    if array is None or array.dtype.kind not in NUMERIC_KINDS:
+        raise ValueError(f"{name} must be an array of numbers of shape {shape}, got {type(action).__name__} "
+                         f"{_brief_repr(action)}")
+    if array.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got shape {array.shape}")
+    return array.astype(np.float64, copy=False)
+
+
+def uses_fused_step(mode: str, estimator: str) -> bool:
+    """Whether the step is the one fused kernel (Excitation with a compiled estimator law)."""
+    return mode == EXCITATION and ESTIMATORS[estimator]._mode in (0, 1)
+
+
+def step_kernels(mode: str, estimator: str) -> tuple:
+    """The compiled kernels an env of ``mode`` steps with (to tell whether they are cached)."""
+    if uses_fused_step(mode, estimator):
+        return (fill_observation, fill_info, excitation_step)
+    return (fill_observation, fill_info, clip_actions, plant_step, finish_step)
+
+
 def spawn_streams(generator: np.random.Generator):
     """(episode generator, noise generator) spawned from a sub-env's seeded generator."""
     episode, noise = generator.spawn(2)
@@ -164,6 +212,8 @@ class BatchSimulator:
                  record: bool = False):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+        # before the estimator is built: building it already compiles kernels
+        announce_compilation(step_kernels(mode, config.estimator))
         self.config = config
         self.mode = mode
         self.n = int(n)
@@ -283,7 +333,7 @@ class BatchSimulator:
             config.thermal.reference_temperature, TEMPERATURE_SCALE, config.temperature_sensor,
             self.obs_low, self.obs_high)
         # Excitation with a compiled estimator law: the whole step is one kernel call.
-        self._fused = self.mode == EXCITATION and estimator._mode in (0, 1)
+        self._fused = uses_fused_step(self.mode, config.estimator)
         if self._fused:
             self._fused_args = (*self._plant_state, *self._plant_args, *estimator._kernel_args(config.dt),
                                 *self._finish_args)
@@ -299,11 +349,10 @@ class BatchSimulator:
         """Start new episodes in sub-envs ``rows`` (array of int), drawing from their streams."""
         config = self.config
         rows = np.asarray(rows, dtype=np.int64)
-        options = dict(options or {})
-        unknown = set(options) - {"initial_temperature", "ambient_drift_rate", "a_true", "a_estimate"}
-        if unknown:
-            raise ValueError(f"reset: unknown option(s) {sorted(unknown)}; expected initial_temperature (K), "
-                             f"ambient_drift_rate (K/s), a_true (A/m), a_estimate (A/m)")
+        if options is not None and not isinstance(options, dict):
+            raise ValueError(f"reset: options must be a dict or None, got {type(options).__name__} "
+                             f"{_brief_repr(options)}")
+        options = self._checked_options(options or {})
         t_lo, t_hi = config.initial_temperature_range
         d_lo, d_hi = config.ambient_drift_rate_range
         for row in rows:
@@ -319,15 +368,11 @@ class BatchSimulator:
         if config.a_true is not None:
             self.temperature[rows] = config.temperature_for_a(config.a_true)
         if "a_true" in options:
-            a_true = self._option(options, "a_true", positive=True)
-            self.temperature[rows] = config.temperature_for_a(a_true)
+            self.temperature[rows] = config.temperature_for_a(options["a_true"])
         if "initial_temperature" in options:
-            self.temperature[rows] = self._option(options, "initial_temperature", positive=True)
+            self.temperature[rows] = options["initial_temperature"]
         if "ambient_drift_rate" in options:
-            self.drift_rate[rows] = self._option(options, "ambient_drift_rate")
-        for name in ("a_true", "initial_temperature"):
-            if name in options:
-                config.hysteresis.replace(a=float(config.a_of(self.temperature[rows[0]])))  # validates
+            self.drift_rate[rows] = options["ambient_drift_rate"]
         self.ambient0[rows] = self.temperature[rows]
         self.a_true[rows] = config.a_of(self.temperature[rows])
         self.field[rows] = 0.0
@@ -343,8 +388,7 @@ class BatchSimulator:
             self.a_estimate[rows] = self.estimator.a_estimate[rows]
         else:
             self.bank.reset(0.0, 0.0, rows)
-            self.a_estimate[rows] = self._option(options, "a_estimate") if "a_estimate" in options \
-                else config.initial_estimate
+            self.a_estimate[rows] = a_estimate
         if self.record:
             for row in rows:
                 self.history[row] = []
@@ -354,28 +398,66 @@ class BatchSimulator:
         if self.record:
             self._record(rows)
 
-    @staticmethod
-    def _option(options, name, positive=False):
-        value = options[name]
-        try:
+    def _checked_options(self, options: dict) -> dict:
+        """The reset options as floats, each checked against the range the config makes
+        physical; a ``ValueError`` naming the option and its range otherwise.
+
+        * ``initial_temperature`` (K): in (0, temperature_limit]: a start above the limit
+          would end the episode on its first step;
+        * ``a_true`` (A/m): in (0, a(temperature_limit)], since a(T) = a_reference*T/T_ref;
+        * ``a_estimate`` (A/m): in Theta = [theta_min, theta_max], as ``initial_estimate``;
+        * ``ambient_drift_rate`` (K/s): any finite number (a fast drift is a legitimate
+          stress test; it ends the episode at the temperature limit).
+
+        The hysteresis model must also be valid at the resulting ``a`` (checked by the
+        physics layer, which names the parameter).
+        """
+        config = self.config
+        unknown = set(options) - set(RESET_OPTIONS)
+        if unknown:
+            raise ValueError(f"reset: unknown option(s) {sorted(unknown)}; expected initial_temperature (K), "
+                             f"ambient_drift_rate (K/s), a_true (A/m), a_estimate (A/m)")
+        a_max = float(config.a_of(config.temperature_limit))
+        ranges = {  # name -> (low, high, low inclusive, unit, why)
+            "initial_temperature": (0.0, config.temperature_limit, False, "K",
+                                    f"above 0 K, at most temperature_limit = {config.temperature_limit:g} K"),
+            "a_true": (0.0, a_max, False, "A/m",
+                       f"a = a_reference*T/T_ref for T in (0, temperature_limit = {config.temperature_limit:g} K]"),
+            "a_estimate": (config.theta_min, config.theta_max, True, "A/m", "Theta = [theta_min, theta_max]"),
+            "ambient_drift_rate": (-math.inf, math.inf, True, "K/s", "finite"),
+        }
+        checked = {}
+        for name, value in options.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+                raise ValueError(f"reset option {name} must be a number, got {type(value).__name__} "
+                                 f"{_brief_repr(value)}")
             value = float(value)
-        except (TypeError, ValueError):
-            raise ValueError(f"reset option {name} must be a number, got {value!r}") from None
-        if not math.isfinite(value) or (positive and value <= 0):
-            raise ValueError(f"reset option {name} must be finite{' and > 0' if positive else ''}, got {value!r}")
-        return value
+            low, high, low_inclusive, unit, why = ranges[name]
+            above_low = value >= low if low_inclusive else value > low
+            if not (math.isfinite(value) and above_low and value <= high):
+                bracket = "[" if low_inclusive else "("
+                span = "finite" if name == "ambient_drift_rate" else f"in {bracket}{low:g}, {high:g}] {unit} ({why})"
+                raise ValueError(f"reset option {name} = {value!r} {unit} is out of range: it must be {span}")
+            checked[name] = value
+        temperature = None
+        if "a_true" in checked:
+            temperature = config.temperature_for_a(checked["a_true"])
+        if "initial_temperature" in checked:
+            temperature = checked["initial_temperature"]
+        if temperature is not None:
+            config.hysteresis.replace(a=float(config.a_of(temperature)))  # raises naming the parameter
+        return checked
 
     # ------------------------------------------------------------------ stepping
 
+    def as_actions(self, actions) -> np.ndarray:
+        """``actions`` as a float64 array of shape (n, action_size); a ``ValueError`` naming
+        the expected and the given shape (or saying the actions are not numbers) otherwise."""
+        return action_array(actions, self._clipped.shape, "actions")
+
     def check_actions(self, actions) -> np.ndarray:
         """Validate normalized actions (shape (n, action_size)); raise naming a bad value."""
-        actions = np.asarray(actions, dtype=np.float64)
-        if actions.shape != (self.n, self.action_size):
-            try:
-                actions = actions.reshape(self.n, self.action_size)
-            except ValueError:
-                raise ValueError(f"action must have shape ({self.action_size},) per sub-env, got an array of "
-                                 f"shape {np.shape(actions)}") from None
+        actions = self.as_actions(actions)
         finite = np.isfinite(actions)
         if not finite.all():
             bad = actions[~finite][0]
@@ -428,9 +510,7 @@ class BatchSimulator:
     def step_views(self, actions, active=None):
         """:meth:`step` returning live (n,) views, overwritten by the next step."""
         config = self.config
-        actions = np.asarray(actions, dtype=np.float64)
-        if actions.shape != self._clipped.shape:
-            actions = self.check_actions(actions)
+        actions = self.as_actions(actions)
         if active is None:
             active = self._all_active
         if self._noisy and self._noise_pos.max() >= NOISE_BLOCK:
@@ -549,4 +629,5 @@ class BatchSimulator:
 
 
 __all__ = ["BatchSimulator", "EXCITATION", "ESTIMATION", "IDENTIFICATION", "INFO_KEYS", "MODES",
-           "NOISE_BLOCK", "estimator_config", "estimator_plant", "observation_names", "output_scales"]
+           "NOISE_BLOCK", "RESET_OPTIONS", "action_array", "estimator_config", "estimator_plant", "observation_names",
+           "output_scales", "step_kernels", "uses_fused_step"]

@@ -5,11 +5,17 @@ limits, the domain-wall model (6) (the physics kernel, called inside), the trans
 exact first-order-hold update, the exact thermal update and the noisy measurement.
 :func:`score_step` turns the estimates into rewards, penalties and terminations. Both
 loop over sub-envs independently, so a sub-env's numbers do not depend on the batch.
+
+The kernels are compiled on first use and cached on disk by numba (``cache=True``); the
+first environment of a fresh install spends 15-60 s compiling them, so
+:func:`announce_compilation` says so once, on stderr, when their cache is missing.
 """
 
 from __future__ import annotations
 
 import math
+import os
+import sys
 
 import numpy as np
 from numba import njit
@@ -284,3 +290,32 @@ def excitation_step(actions, tolerance, clipped, command, active,
 
 __all__ = ["clip_actions", "excitation_step", "fill_info", "fill_observation", "finish_step", "plant_step",
            "score_step"]
+
+
+#: printed once per process, on stderr, before the first environment compiles its kernels
+COMPILE_NOTICE = "hyst-gym: compiling the simulation kernels (first use only, ~20 s; cached afterwards)"
+_compile_notice_shown = False
+
+
+def is_cached(kernel) -> bool:
+    """Whether numba's on-disk cache holds an index for ``kernel`` (it is then loaded, not
+    compiled). The index path is numba's own choice of cache folder (``__pycache__``
+    beside the module, ``NUMBA_CACHE_DIR``, or the user-wide cache); it is read from
+    numba's cache object, which is internal: where it cannot be read (another numba, or
+    ``NUMBA_DISABLE_JIT``), this says True, so the notice is never printed on every run."""
+    try:
+        index_path = kernel._cache._cache_file._index_path
+    except AttributeError:
+        return True
+    return os.path.exists(index_path)
+
+
+def announce_compilation(kernels) -> None:
+    """Print :data:`COMPILE_NOTICE` to stderr, once per process, if any of ``kernels`` is
+    not in numba's cache (so its first call compiles it). A print, not a warning: it is
+    news, not a problem, and must show even where warnings are filtered."""
+    global _compile_notice_shown
+    if _compile_notice_shown or all(is_cached(kernel) for kernel in kernels):
+        return
+    _compile_notice_shown = True
+    print(COMPILE_NOTICE, file=sys.stderr, flush=True)

@@ -3,13 +3,17 @@
 Gymnasium 1.x has no entry-point plugins, so ``hyst_gym/__init__.py`` imports this
 module; ``gymnasium.make("hyst_gym:hyst_gym/Excitation-v0")`` imports ``hyst_gym`` and
 so registers the ids from any project.
+
+No ``max_episode_steps`` is registered: the environments truncate themselves at their
+``episode_steps`` (a config field, default 1000), so ``gymnasium.make(id,
+episode_steps=2000)`` runs 2000 steps. A registered limit would add Gymnasium's
+``TimeLimit`` at 1000 and cut such episodes short without a word.
+``gymnasium.make(id, max_episode_steps=n)`` still adds a shorter limit on request.
 """
 
 from __future__ import annotations
 
 import gymnasium
-
-from .config import EnvConfig
 
 #: id -> (single env class, vector env class), "module:Class" strings (lazy import)
 ENV_IDS = {
@@ -22,12 +26,10 @@ ENV_IDS = {
 
 def register_envs() -> None:
     """Register the three ids (idempotent)."""
-    steps = EnvConfig.__dataclass_fields__["episode_steps"].default
     for env_id, (entry_point, vector_entry_point) in ENV_IDS.items():
         if env_id in gymnasium.registry:
             continue
-        gymnasium.register(id=env_id, entry_point=entry_point, vector_entry_point=vector_entry_point,
-                           max_episode_steps=steps)
+        gymnasium.register(id=env_id, entry_point=entry_point, vector_entry_point=vector_entry_point)
 
 
 register_envs()

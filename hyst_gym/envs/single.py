@@ -18,7 +18,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .config import EnvConfig, make_config
-from .core import ESTIMATION, EXCITATION, IDENTIFICATION, BatchSimulator
+from .core import ESTIMATION, EXCITATION, IDENTIFICATION, BatchSimulator, action_array
 
 RENDER_MODES = ("rgb_array", "human")
 
@@ -35,7 +35,11 @@ class HystEnv(gym.Env):
         Fields of :class:`EnvConfig` to change.
 
     Reset options: ``initial_temperature`` (K), ``ambient_drift_rate`` (K/s), ``a_true``
-    (A/m, sets the initial temperature), ``a_estimate`` (A/m, thetahat(0)).
+    (A/m, sets the initial temperature), ``a_estimate`` (A/m, thetahat(0)); each must lie
+    in the range the config makes physical (``ValueError`` naming it otherwise).
+
+    ``step`` takes an array of numbers of shape ``action_space.shape`` exactly; anything
+    else (None, strings, another shape) is a ``ValueError`` saying what was given.
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 30}
@@ -67,8 +71,8 @@ class HystEnv(gym.Env):
 
     def step(self, action):
         sim = self.sim
-        reward, terminated, truncated = sim.step_views(np.asarray(action, dtype=np.float64).reshape(1, -1)
-                                                       if np.size(action) == sim.action_size else action)
+        action = action_array(action, self.action_space.shape)
+        reward, terminated, truncated = sim.step_views(action.reshape(1, -1))
         if self.render_mode == "human":
             self.render()
         return (sim.observation()[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]),

@@ -30,9 +30,11 @@ class HystVectorEnv(VectorEnv):
     num_envs : int
     config : EnvConfig, optional
     max_episode_steps : int, optional
-        Time limit in steps (``make_vec`` passes the registered one); the episode is
-        truncated at ``min(max_episode_steps, config.episode_steps)``, exactly like a
-        single env made with the same ``max_episode_steps``.
+        An extra time limit in steps (none is registered, so only an explicit
+        ``make_vec(..., max_episode_steps=n)`` passes one); the episode is truncated at
+        ``min(max_episode_steps, config.episode_steps)``, exactly like a single env made
+        with the same ``max_episode_steps`` (Gymnasium's ``TimeLimit`` on an env that
+        truncates itself at ``episode_steps``).
     autoreset_mode : AutoresetMode or str
         ``NEXT_STEP`` (default, as ``SyncVectorEnv``), ``SAME_STEP`` or ``DISABLED``.
     render_mode : {None, "rgb_array"}
@@ -48,6 +50,10 @@ class HystVectorEnv(VectorEnv):
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         self.config = make_config(config, **overrides)
+        if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or
+                                              not isinstance(max_episode_steps, (int, np.integer))
+                                              or max_episode_steps < 1):
+            raise ValueError(f"max_episode_steps must be an integer >= 1 or None, got {max_episode_steps!r}")
         limit = self.config.episode_steps if max_episode_steps is None else min(int(max_episode_steps),
                                                                                 self.config.episode_steps)
         if render_mode is not None and render_mode != "rgb_array":
@@ -89,12 +95,12 @@ class HystVectorEnv(VectorEnv):
         return self.sim.observation(), self._infos()
 
     def step(self, actions):
-        actions = np.asarray(actions, dtype=np.float64)
+        actions = self.sim.as_actions(actions)  # exactly (num_envs, action size), or a ValueError
         resetting = self._autoreset if self.autoreset_mode == AutoresetMode.NEXT_STEP else None
         any_resetting = resetting is not None and bool(resetting.any())
         if any_resetting:
             # The action of a sub-env that is being reset is ignored (SyncVectorEnv semantics).
-            actions = np.array(actions.reshape(self.num_envs, -1))
+            actions = actions.copy()
             actions[resetting] = 0.0
         elif self.autoreset_mode == AutoresetMode.DISABLED and self._autoreset.any():
             raise RuntimeError("step: some sub-envs are done and autoreset_mode is DISABLED; reset them first")

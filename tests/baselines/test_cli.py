@@ -4,6 +4,7 @@ import csv
 import json
 
 import numpy as np
+import pytest
 
 from baselines.scenarios import HELDOUT_SEEDS
 from hyst_gym.cli import main
@@ -72,3 +73,28 @@ def test_missing_rl_extra_is_a_one_line_error(tmp_path, capsys, monkeypatch):
     assert main(["train", "--algo", "ppo", "--timesteps", "64", "--out", str(tmp_path), "--no-progress"]) == 2
     error = capsys.readouterr().err.strip()
     assert error == "hyst-gym train: error: needs torch; install the RL extra: pip install 'hyst-gym[rl]'"
+
+
+def test_reward_names_of_the_parser_are_those_of_the_rewards_module():
+    from baselines.rewards import REWARDS
+    from baselines.train import REWARD_NAMES
+
+    assert REWARD_NAMES == REWARDS  # train.py repeats them so that its --help needs no Stable-Baselines3
+
+
+def test_bad_settings_leave_no_output_folder(tmp_path, capsys):
+    out = tmp_path / "run"
+    common = ["--algo", "ppo", "--timesteps", "64", "--out", str(out), "--no-progress"]
+    with pytest.raises(SystemExit) as exit_info:
+        main(["train", "--env", "hyst_gym/Nope-v0", *common])
+    assert exit_info.value.code == 2
+    assert main(["train", "--hyperparams", '{"nope": 1, "n_steps": 64}', *common]) == 2
+    assert main(["train", "--hyperparams", '{"policy_kwargs": {"net_arch": [8], "width": 3}}', *common]) == 2
+    errors = capsys.readouterr().err.strip().splitlines()
+    assert len(errors) == 3 and "Traceback" not in "".join(errors)
+    assert errors[0].startswith("hyst-gym train: error: argument --env: invalid choice: 'hyst_gym/Nope-v0'")
+    assert errors[1].startswith("hyst-gym train: error: --hyperparams: unknown hyperparameter(s) nope for ppo; "
+                                "accepted: batch_size, ")
+    assert "n_steps" in errors[1].split("accepted:")[1]
+    assert "unknown policy_kwargs key(s) width for ppo's MlpPolicy; accepted: " in errors[2]
+    assert not out.exists()

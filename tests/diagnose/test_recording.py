@@ -36,6 +36,19 @@ def test_current_column_uses_turns_per_meter(tmp_path):
     assert np.allclose(read_recording(path).field, h)
 
 
+def test_flux_density_in_tesla_is_read_as_magnetization(tmp_path):
+    t, h, m = _good_rows()
+    mu0 = 4e-7 * np.pi
+    b = mu0 * (h + m)  # T; 0.38 T at the peak of this loop
+    path = _write(tmp_path / "b.csv", "time,field,flux_density", zip(t, h, b))
+    back = read_recording(path)
+    assert back.channels == ("magnetization",)
+    np.testing.assert_allclose(back.magnetization, m, rtol=0, atol=1e-9 * np.ptp(m))
+    both = _write(tmp_path / "both.csv", "time,field,flux_density,magnetization", zip(t, h, b, m))
+    with pytest.raises(ValueError, match="not both"):
+        read_recording(both)
+
+
 @pytest.mark.parametrize("mutate, message", [
     (lambda rows, header: ("time,magnetization", [(r[0], r[2]) for r in rows]), "missing column 'field'"),
     (lambda rows, header: ("time,field", [(r[0], r[1]) for r in rows]), "magnetization' or a 'displacement"),

@@ -68,5 +68,81 @@ def test_unknown_override_and_reset_option_raise():
     env = gymnasium.make("hyst_gym/Excitation-v0")
     with pytest.raises(ValueError, match="unknown option"):
         env.reset(seed=0, options={"temperatur": 300})
-    with pytest.raises(ValueError, match="a_true must be finite and > 0, got -1.0"):
+    with pytest.raises(ValueError, match=r"reset option a_true = -1.0 A/m is out of range: it must be in \(0, "):
         env.reset(seed=0, options={"a_true": -1.0})
+
+
+@pytest.mark.parametrize("options, pattern", [
+    ({"a_true": 1e9}, r"a_true = 1000000000.0 A/m is out of range: it must be in \(0, 7968.78\] A/m \(a = "
+                      r"a_reference\*T/T_ref for T in \(0, temperature_limit = 333.15 K\]\)"),
+    ({"a_true": float("nan")}, "a_true = nan A/m is out of range"),
+    ({"a_true": "7012"}, "reset option a_true must be a number, got str '7012'"),
+    ({"initial_temperature": 400.0}, r"initial_temperature = 400.0 K is out of range: it must be in \(0, 333.15\] K"),
+    ({"initial_temperature": 0.0}, "initial_temperature = 0.0 K is out of range"),
+    ({"a_estimate": 100.0}, r"a_estimate = 100.0 A/m is out of range: it must be in \[6300, 7300\] A/m \(Theta"),
+    ({"ambient_drift_rate": float("inf")}, "ambient_drift_rate = inf K/s is out of range: it must be finite"),
+    ({"ambient_drift_rate": None}, "ambient_drift_rate must be a number, got NoneType None"),
+])
+def test_reset_options_outside_their_physical_range_raise(env_id, options, pattern):
+    env = gymnasium.make(env_id)
+    with pytest.raises(ValueError, match=pattern) as raised:
+        env.reset(seed=0, options=options)
+    assert "\n" not in str(raised.value)
+    env.reset(seed=0, options={"a_true": 7012.0, "a_estimate": 7000.0, "ambient_drift_rate": 0.1})  # in range
+
+
+def test_reset_options_must_be_a_dict():
+    env = gymnasium.make("hyst_gym/Excitation-v0")
+    with pytest.raises(ValueError, match="reset: options must be a dict or None, got list"):
+        env.reset(seed=0, options=[("a_true", 7012.0)])
+
+
+@pytest.mark.parametrize("action, pattern", [
+    (None, r"action is None; expected an array of numbers of shape \(1,\)"),
+    ("0.5", r"action must be an array of numbers of shape \(1,\), got str '0.5'"),
+    (np.array([True]), "action must be an array of numbers"),
+    ([[0.1], [0.2, 0.3]], "action must be an array of numbers"),
+    (np.zeros((1, 1)), r"action must have shape \(1,\), got shape \(1, 1\)"),
+    (np.float32(0.5), r"action must have shape \(1,\), got shape \(\)"),
+    (np.zeros(2), r"action must have shape \(1,\), got shape \(2,\)"),
+])
+def test_action_of_wrong_type_or_shape_raises(action, pattern):
+    env = gymnasium.make("hyst_gym/Excitation-v0")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=pattern):
+        env.step(action)
+    env.step([0.5])  # a list of numbers of the right shape is fine
+
+
+def test_vector_action_of_wrong_shape_raises():
+    venv = gymnasium.make_vec("hyst_gym/Excitation-v0", num_envs=4, vectorization_mode="vector_entry_point")
+    venv.reset(seed=0)
+    with pytest.raises(ValueError, match=r"actions must have shape \(4, 1\), got shape \(4,\)"):
+        venv.step(np.zeros(4))
+    with pytest.raises(ValueError, match=r"actions is None; expected an array of numbers of shape \(4, 1\)"):
+        venv.step(None)
+    venv.step(np.zeros((4, 1), dtype=np.float32))
+
+
+def test_episode_steps_beyond_the_default_are_not_cut_short():
+    # no TimeLimit is registered: the env itself truncates at episode_steps (here 2000,
+    # twice the default that used to be registered as max_episode_steps)
+    assert gymnasium.spec("hyst_gym/Excitation-v0").max_episode_steps is None
+    env = gymnasium.make("hyst_gym:hyst_gym/Excitation-v0", episode_steps=2000, output_noise=0.0)
+    env.reset(seed=0)
+    action = np.zeros(1, dtype=np.float32)
+    truncations = [env.step(action)[3] for _ in range(2000)]
+    assert truncations == [False] * 1999 + [True]
+
+    venv = gymnasium.make_vec("hyst_gym/Excitation-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                              episode_steps=2000, output_noise=0.0)
+    venv.reset(seed=0)
+    actions = np.zeros((2, 1), dtype=np.float32)
+    truncations = [venv.step(actions)[3].copy() for _ in range(2000)]
+    assert not np.any(truncations[:1999]) and np.all(truncations[1999])
+
+
+def test_max_episode_steps_must_be_a_positive_integer():
+    with pytest.raises(ValueError, match="max_episode_steps must be an integer >= 1 or None, got 0"):
+        gymnasium.make_vec("hyst_gym/Excitation-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                           max_episode_steps=0)
