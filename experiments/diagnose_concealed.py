@@ -1,17 +1,27 @@
-"""Blind study of the mismatch tool on concealed-effect recordings (issue 6).
+"""Blind study of the mismatch tool on concealed-effect recordings, per channel set and generator.
 
-For every effect of the vocabulary and for ``none``, ``--seeds`` synthetic recordings are
-drawn with ``make_recording`` (default length and strength) and diagnosed blind (the tool
-sees only the recording). Raw per-recording rows go to
-``experiments/results/diagnose/concealed_runs.csv`` (reruns skip rows already there); the
-confusion matrix, the mean held-out improvement per effect, the false-alarm rate and the
-seconds per recording go to ``concealed.md``, ``concealed_summary.json`` and
-``docs/figures/diagnose/confusion.png``.
+Two generators write the recordings:
 
-    .venv/bin/python experiments/diagnose_concealed.py --seeds 5 --jobs 2 --samples 4000
+* ``own`` -- :func:`hyst_gym.diagnose.make_recording`, which shares the fitter's kernels;
+* ``independent`` -- :mod:`experiments.independent_recordings`, written separately: its own
+  integrators (RK4 in time on the hysteresis ODE, its own mechanics), its own excitation
+  families (sines with minor loops, triangles, PRBS, chirps, a milling-like load), sampling
+  rates of 10-60 kHz, noise of 0.1-1 % of peak-to-peak, record lengths and wider parameter
+  ranges, none of which the fitter is told. It also conceals effects the tool does not model.
 
-``--effects E1 E2 --rerun`` recomputes only those effects' rows (e.g. after a generator change
-for them) and keeps the other effects' rows.
+For every generator, channel set (``magnetization``, ``displacement``, ``both``), effect the
+channel set can show, and seed, one recording is diagnosed blind. Per-recording rows go to
+``experiments/results/diagnose/concealed_study.csv`` (reruns skip rows already there). The
+summary (``concealed.md``, ``concealed_summary.json``, figures in ``docs/figures/diagnose/``)
+reports, per generator and channel set: exact verdicts, verdicts that are right or ambiguous
+with the truth listed, wrong single names, wrong names on effects outside the vocabulary,
+false alarms on ``none``, the held-out reduction of the true effect's model, seconds per
+recording, and a reliability table (confidence bins against how often the verdict was right).
+
+What counts as right: for a vocabulary effect or ``none``, its own name; for an effect outside
+the vocabulary, ``unexplained`` or ``ambiguous`` (the tool must not give it a vocabulary name).
+
+    .venv/bin/python -m experiments.diagnose_concealed --seeds 5 --jobs 2
 """
 
 from __future__ import annotations
@@ -27,30 +37,90 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from hyst_gym.diagnose import GENERATOR_EFFECTS, diagnose, make_recording
+from hyst_gym.diagnose import GENERATOR_EFFECTS, diagnose
+from hyst_gym.diagnose.identifiability import CHANNEL_SETS, MECHANICAL_EFFECTS
+from hyst_gym.diagnose.make_recording import make_recording_with_truth
 
 ROOT = Path(__file__).resolve().parent
 RESULTS = ROOT / "results" / "diagnose"
 FIGURES = ROOT.parent / "docs" / "figures" / "diagnose"
-FIELDS = ["effect", "seed", "verdict", "confidence", "baseline_heldout", "verdict_heldout", "true_effect_heldout",
-          "true_effect_improvement", "improvement", "seconds", "samples", "load_average"]
-LABELS = list(GENERATOR_EFFECTS) + ["unexplained"]
+RUNS = RESULTS / "concealed_study.csv"
+GENERATORS = ("own", "independent")
+FIELDS = ["generator", "channels", "effect", "in_vocabulary", "seed", "verdict", "tied", "confidence", "outcome",
+          "baseline_heldout", "verdict_heldout", "true_effect_improvement", "seconds", "samples", "sample_rate_hz",
+          "noise_relative", "excitation", "load_average"]
+#: Confidence bins of the reliability table.
+BINS = (0.0, 0.2, 0.5, 0.8, 0.9, 1.0001)
+
+
+def independent_effects():
+    from experiments.independent_recordings import EFFECTS_IN_VOCABULARY, EFFECTS_OUTSIDE
+
+    return tuple(EFFECTS_IN_VOCABULARY), tuple(EFFECTS_OUTSIDE)
+
+
+def cases(generators, channel_sets, seeds, first_seed):
+    """Every (generator, channels, effect, seed) the channel set can show."""
+    out = []
+    for generator in generators:
+        if generator == "own":
+            effects = [(e, True) for e in GENERATOR_EFFECTS]
+        else:
+            inside, outside = independent_effects()
+            effects = [(e, True) for e in inside] + [(e, False) for e in outside]
+        for channels in channel_sets:
+            for effect, in_vocabulary in effects:
+                if channels == "magnetization" and effect in MECHANICAL_EFFECTS:
+                    continue
+                for seed in range(first_seed, first_seed + seeds):
+                    out.append((generator, channels, effect, in_vocabulary, seed))
+    return out
+
+
+def make(generator, channels, effect, seed, samples):
+    """(recording, conditions) from the chosen generator."""
+    if generator == "own":
+        recording, _, truth = make_recording_with_truth(effect, seed, output=channels, n_samples=samples)
+        return recording, {"sample_rate_hz": truth["sample_rate"], "noise_relative": truth["noise_rel"],
+                           "excitation": "own"}
+    from experiments.independent_recordings import generate
+
+    recording, truth = generate(effect, seed, channels)
+    return recording, {"sample_rate_hz": truth.get("sample_rate_hz", truth.get("sample_rate", "")),
+                       "noise_relative": truth.get("noise_relative", truth.get("noise_rel", "")),
+                       "excitation": truth.get("excitation", truth.get("excitation_family", ""))}
+
+
+def outcome(effect, in_vocabulary, verdict, tied):
+    """right / ambiguous_with_truth / wrong_name / ambiguous_without_truth / unexplained / missed."""
+    if not in_vocabulary:
+        if verdict in ("unexplained", "ambiguous"):
+            return "right"
+        return "missed" if verdict == "none" else "wrong_name"
+    if verdict == effect:
+        return "right"
+    if verdict == "ambiguous":
+        return "ambiguous_with_truth" if effect in tied else "ambiguous_without_truth"
+    if verdict == "unexplained":
+        return "unexplained"
+    return "missed" if verdict == "none" else "wrong_name"
 
 
 def run_one(job):
-    effect, seed, samples = job
-    recording, _ = make_recording(effect, seed, n_samples=samples)
+    generator, channels, effect, in_vocabulary, seed, samples = job
+    recording, conditions = make(generator, channels, effect, seed, samples)
     started = time.perf_counter()
     report = diagnose(recording, progress=False)
     seconds = time.perf_counter() - started
+    tied = [c.effect for c in report.tied] if report.verdict == "ambiguous" else []
     true = next((c for c in report.candidates if c.effect == effect), None)
-    return {"effect": effect, "seed": seed, "verdict": report.verdict, "confidence": report.confidence,
+    return {"generator": generator, "channels": channels, "effect": effect, "in_vocabulary": in_vocabulary,
+            "seed": seed, "verdict": report.verdict, "tied": ";".join(tied), "confidence": report.confidence,
+            "outcome": outcome(effect, in_vocabulary, report.verdict, tied),
             "baseline_heldout": report.baseline_heldout,
             "verdict_heldout": report.chosen.heldout_rmse if report.chosen else report.baseline_heldout,
-            "true_effect_heldout": true.heldout_rmse if true else "",
-            "true_effect_improvement": true.improvement if true else "",
-            "improvement": report.improvement, "seconds": seconds, "samples": recording.size,
-            "load_average": os.getloadavg()[0]}
+            "true_effect_improvement": true.improvement if true else "", "seconds": seconds,
+            "samples": recording.size, **conditions, "load_average": os.getloadavg()[0]}
 
 
 def load_rows(path):
@@ -60,116 +130,168 @@ def load_rows(path):
         return list(csv.DictReader(handle))
 
 
+def _share(rows, predicate):
+    return sum(1 for r in rows if predicate(r)) / len(rows) if rows else None
+
+
+def summarize_group(rows):
+    """The issue's targets for one (generator, channel set)."""
+    inside = [r for r in rows if r["in_vocabulary"] == "True"]
+    outside = [r for r in rows if r["in_vocabulary"] != "True"]
+    none_rows = [r for r in inside if r["effect"] == "none"]
+    per_effect = {}
+    for effect in sorted({r["effect"] for r in rows}):
+        group = [r for r in rows if r["effect"] == effect]
+        improvements = [float(r["true_effect_improvement"]) for r in group if r["true_effect_improvement"]]
+        per_effect[effect] = {
+            "n": len(group), "right": _share(group, lambda r: r["outcome"] == "right"),
+            "right_or_ambiguous_with_truth": _share(group, lambda r: r["outcome"] in ("right", "ambiguous_with_truth")),
+            "verdicts": {v: sum(r["verdict"] == v for r in group) for v in sorted({r["verdict"] for r in group})},
+            "true_effect_improvement_median": float(np.median(improvements)) if improvements else None,
+            "true_effect_improvement_min": float(np.min(improvements)) if improvements else None}
+    return {
+        "recordings": len(rows), "in_vocabulary": len(inside), "outside_vocabulary": len(outside),
+        "right": _share(inside, lambda r: r["outcome"] == "right"),
+        "right_or_ambiguous_with_truth": _share(inside, lambda r: r["outcome"] in ("right", "ambiguous_with_truth")),
+        "wrong_single_names": _share(inside, lambda r: r["outcome"] == "wrong_name"),
+        "outside_right": _share(outside, lambda r: r["outcome"] == "right"),
+        "outside_wrong_names_confidence_ge_0.5": sum(r["outcome"] == "wrong_name" and float(r["confidence"]) >= 0.5
+                                                     for r in outside),
+        "false_alarms_on_none": _share(none_rows, lambda r: r["verdict"] != "none"),
+        "seconds_per_recording": {"median": float(np.median([float(r["seconds"]) for r in rows])),
+                                  "max": float(np.max([float(r["seconds"]) for r in rows]))},
+        "samples": [int(min(int(r["samples"]) for r in rows)), int(max(int(r["samples"]) for r in rows))],
+        "per_effect": per_effect}
+
+
+def reliability(rows):
+    """Confidence bins against the share of right verdicts (ambiguous-with-truth counts as right)."""
+    table = []
+    for lo, hi in zip(BINS[:-1], BINS[1:]):
+        group = [r for r in rows if lo <= float(r["confidence"]) < hi]
+        table.append({"confidence": [lo, min(hi, 1.0)], "n": len(group),
+                      "right": _share(group, lambda r: r["outcome"] in ("right", "ambiguous_with_truth"))})
+    return table
+
+
 def summarize(rows):
-    index = {label: i for i, label in enumerate(LABELS)}
-    matrix = np.zeros((len(GENERATOR_EFFECTS), len(LABELS)), dtype=int)
-    for row in rows:
-        matrix[index[row["effect"]], index[row["verdict"]]] += 1
-    correct = sum(matrix[i, i] for i in range(len(GENERATOR_EFFECTS)))
-    total = int(matrix.sum())
-    none_rows = [r for r in rows if r["effect"] == "none"]
-    false_alarms = sum(r["verdict"] != "none" for r in none_rows)
-    improvement = {}
-    for effect in GENERATOR_EFFECTS:
-        if effect == "none":
-            continue
-        vals = [float(r["true_effect_improvement"]) for r in rows if r["effect"] == effect
-                and r["true_effect_improvement"] not in ("", None)]
-        improvement[effect] = {"mean": float(np.mean(vals)) if vals else None,
-                               "min": float(np.min(vals)) if vals else None, "n": len(vals)}
-    seconds = [float(r["seconds"]) for r in rows]
-    return {"recordings": total, "correct": int(correct), "accuracy": correct / total if total else None,
-            "none_recordings": len(none_rows), "false_alarms": int(false_alarms),
-            "false_alarm_rate": false_alarms / len(none_rows) if none_rows else None,
-            "mean_heldout_improvement_of_true_effect": improvement,
-            "seconds_per_recording": {"mean": float(np.mean(seconds)), "max": float(np.max(seconds))},
-            "samples": sorted({int(r["samples"]) for r in rows}),
-            "mean_load_average": float(np.mean([float(r["load_average"]) for r in rows])),
-            "confusion": {"rows_true": list(GENERATOR_EFFECTS), "columns_verdict": LABELS,
-                          "counts": matrix.tolist()}}
+    groups = {}
+    for generator in GENERATORS:
+        for channels in CHANNEL_SETS:
+            group = [r for r in rows if r["generator"] == generator and r["channels"] == channels]
+            if group:
+                groups[f"{generator}/{channels}"] = summarize_group(group)
+    return {"groups": groups, "reliability": reliability(rows),
+            "reliability_by_generator": {g: reliability([r for r in rows if r["generator"] == g]) for g in GENERATORS},
+            "mean_load_average": float(np.mean([float(r["load_average"]) for r in rows])) if rows else None}
 
 
-def write_outputs(summary):
+def _pct(value):
+    return "–" if value is None else f"{100 * value:.0f} %"
+
+
+def markdown(summary):
+    lines = ["# Concealed-effect study", "",
+             "Generated by `python -m experiments.diagnose_concealed`. Right = the concealed effect's name (for an "
+             "effect outside the vocabulary: `unexplained` or `ambiguous`). Default lumped base model, blind.", "",
+             "| generator / channels | recordings | right | right or ambiguous with truth | wrong single name | "
+             "outside vocabulary right | outside: wrong names with confidence >= 0.5 | false alarms on none | "
+             "s per recording (median / max) |", "|---|---|---|---|---|---|---|---|---|"]
+    for key, g in summary["groups"].items():
+        lines.append(f"| {key} | {g['recordings']} | {_pct(g['right'])} | {_pct(g['right_or_ambiguous_with_truth'])} | "
+                     f"{_pct(g['wrong_single_names'])} | {_pct(g['outside_right'])} | "
+                     f"{g['outside_wrong_names_confidence_ge_0.5']} | {_pct(g['false_alarms_on_none'])} | "
+                     f"{g['seconds_per_recording']['median']:.1f} / {g['seconds_per_recording']['max']:.1f} |")
+    for key, g in summary["groups"].items():
+        lines += ["", f"## {key}", "", "| effect | n | right | right or ambiguous with truth | verdicts | "
+                  "held-out reduction of the true effect (median / min) |", "|---|---|---|---|---|---|"]
+        for effect, e in g["per_effect"].items():
+            verdicts = ", ".join(f"{v} {n}" for v, n in e["verdicts"].items())
+            reduction = ("–" if e["true_effect_improvement_median"] is None else
+                         f"{_pct(e['true_effect_improvement_median'])} / {_pct(e['true_effect_improvement_min'])}")
+            lines.append(f"| {effect} | {e['n']} | {_pct(e['right'])} | {_pct(e['right_or_ambiguous_with_truth'])} | "
+                         f"{verdicts} | {reduction} |")
+    lines += ["", "## Reliability of `confidence` (all recordings)", "", "| confidence | n | right |", "|---|---|---|"]
+    for row in summary["reliability"]:
+        lines.append(f"| {row['confidence'][0]:.1f}-{row['confidence'][1]:.1f} | {row['n']} | {_pct(row['right'])} |")
+    return "\n".join(lines) + "\n"
+
+
+def write_outputs(summary, rows):
     RESULTS.mkdir(parents=True, exist_ok=True)
     FIGURES.mkdir(parents=True, exist_ok=True)
     (RESULTS / "concealed_summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    counts = np.array(summary["confusion"]["counts"])
-    with open(RESULTS / "confusion.csv", "w", newline="") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(["true \\ verdict"] + LABELS)
-        for effect, row in zip(GENERATOR_EFFECTS, counts):
-            writer.writerow([effect] + row.tolist())
-    lines = ["# Concealed-effect study", "",
-             f"{summary['recordings']} recordings ({summary['samples']} samples each), diagnosed blind with the "
-             f"default lumped base model.", "",
-             f"- correct verdicts: {summary['correct']}/{summary['recordings']} = {100 * summary['accuracy']:.0f} %",
-             f"- false alarms on `none`: {summary['false_alarms']}/{summary['none_recordings']}",
-             f"- seconds per recording: mean {summary['seconds_per_recording']['mean']:.1f}, max "
-             f"{summary['seconds_per_recording']['max']:.1f} (mean 1-min load average during the run "
-             f"{summary['mean_load_average']:.1f} on 2 cores)", "",
-             "| true \\ verdict | " + " | ".join(LABELS) + " |", "|---" * (len(LABELS) + 1) + "|"]
-    for effect, row in zip(GENERATOR_EFFECTS, counts):
-        lines.append(f"| {effect} | " + " | ".join(str(v) for v in row) + " |")
-    lines += ["", "Held-out RMSE reduction of the true effect's model over the base model:", "",
-              "| effect | mean | min | n |", "|---|---|---|---|"]
-    for effect, stats in summary["mean_heldout_improvement_of_true_effect"].items():
-        if stats["mean"] is not None:
-            lines.append(f"| {effect} | {100 * stats['mean']:.0f} % | {100 * stats['min']:.0f} % | {stats['n']} |")
-    (RESULTS / "concealed.md").write_text("\n".join(lines) + "\n")
-
+    (RESULTS / "concealed.md").write_text(markdown(summary))
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(9, 6))
-    ax.imshow(counts, cmap="Blues")
-    ax.set_xticks(range(len(LABELS)), LABELS, rotation=45, ha="right")
-    ax.set_yticks(range(len(GENERATOR_EFFECTS)), GENERATOR_EFFECTS)
-    for i in range(counts.shape[0]):
-        for j in range(counts.shape[1]):
-            if counts[i, j]:
-                ax.text(j, i, str(counts[i, j]), ha="center", va="center")
-    ax.set_xlabel("verdict"); ax.set_ylabel("concealed effect")
-    ax.set_title(f"Blind verdicts: {100 * summary['accuracy']:.0f} % correct")
+
+    keys = list(summary["groups"])
+    fig, ax = plt.subplots(figsize=(8, 3.8))
+    x = np.arange(len(keys))
+    for offset, (name, label) in enumerate((("right", "right"),
+                                            ("right_or_ambiguous_with_truth", "right or ambiguous with truth"),
+                                            ("wrong_single_names", "wrong single name"))):
+        ax.bar(x + 0.27 * (offset - 1), [100 * (summary["groups"][k][name] or 0) for k in keys], 0.27, label=label)
+    ax.set_xticks(x, keys, rotation=20, ha="right")
+    ax.set_ylabel("% of recordings (vocabulary effects)")
+    ax.axhline(85, color="k", lw=0.6, ls=":")
+    ax.legend(fontsize=8)
+    ax.set_title("Concealed-effect study: verdicts per generator and channel set")
     fig.tight_layout()
-    fig.savefig(FIGURES / "confusion.png", dpi=110)
+    fig.savefig(FIGURES / "concealed_by_channel_set.png", dpi=110)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(4.5, 4))
+    table = [r for r in summary["reliability"] if r["n"]]
+    centers = [0.5 * sum(r["confidence"]) for r in table]
+    ax.plot([0, 1], [0, 1], color="0.6", lw=0.8, ls="--")
+    ax.plot(centers, [r["right"] for r in table], "o-")
+    for c, r in zip(centers, table):
+        ax.annotate(str(r["n"]), (c, r["right"]), textcoords="offset points", xytext=(4, -10), fontsize=8)
+    ax.set(xlabel="confidence (bin centre)", ylabel="share right", ylim=(0, 1.05), title="Reliability of confidence")
+    fig.tight_layout()
+    fig.savefig(FIGURES / "concealed_reliability.png", dpi=110)
     plt.close(fig)
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=5)
-    parser.add_argument("--first-seed", type=int, default=100)
-    parser.add_argument("--samples", type=int, default=5000)
-    parser.add_argument("--jobs", type=int, default=1)
-    parser.add_argument("--effects", nargs="*", default=list(GENERATOR_EFFECTS), choices=GENERATOR_EFFECTS)
-    parser.add_argument("--rerun", action="store_true",
-                        help="drop the stored rows of --effects and recompute them (other effects' rows are kept)")
+    parser.add_argument("--seeds", type=int, default=5, help="recordings per case (default 5)")
+    parser.add_argument("--first-seed", type=int, default=100, help="first seed (default 100)")
+    parser.add_argument("--samples", type=int, default=5000,
+                        help="samples per recording of the own generator (the independent one draws its own length)")
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    parser.add_argument("--generators", nargs="+", default=list(GENERATORS), choices=GENERATORS,
+                        help="which generators (default both)")
+    parser.add_argument("--channels", nargs="+", default=list(CHANNEL_SETS), choices=CHANNEL_SETS,
+                        help="which channel sets (default all three)")
+    parser.add_argument("--rerun", action="store_true", help="drop the stored rows of the selected cases first")
     args = parser.parse_args(argv)
-    runs = RESULTS / "concealed_runs.csv"
+    if args.seeds < 1 or args.jobs < 1 or args.samples < 400:
+        parser.error("--seeds and --jobs must be >= 1 and --samples >= 400")
+    todo = cases(args.generators, args.channels, args.seeds, args.first_seed)
+    rows = load_rows(RUNS)
+    if args.rerun:
+        selected = {(g, c, e, str(s)) for g, c, e, _, s in todo}
+        rows = [r for r in rows if (r["generator"], r["channels"], r["effect"], r["seed"]) not in selected]
+        RUNS.unlink(missing_ok=True)
     RESULTS.mkdir(parents=True, exist_ok=True)
-    rows = load_rows(runs)
-    if args.rerun and rows:
-        rows = [r for r in rows if r["effect"] not in args.effects]
-        with open(runs, "w", newline="") as handle:
-            writer = csv.DictWriter(handle, fieldnames=FIELDS)
-            writer.writeheader()
-            writer.writerows(rows)
-    done = {(r["effect"], int(r["seed"])) for r in rows}
-    jobs = [(e, s, args.samples) for e in args.effects
-            for s in range(args.first_seed, args.first_seed + args.seeds) if (e, s) not in done]
-    new_file = not runs.exists()
-    with open(runs, "a", newline="") as handle:
+    done = {(r["generator"], r["channels"], r["effect"], r["seed"]) for r in rows}
+    jobs = [(g, c, e, v, s, args.samples) for g, c, e, v, s in todo if (g, c, e, str(s)) not in done]
+    new_file = not RUNS.exists()
+    with open(RUNS, "a", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=FIELDS)
         if new_file:
             writer.writeheader()
+            writer.writerows(rows)
         with ProcessPoolExecutor(max_workers=args.jobs) as pool:
             for row in tqdm(pool.map(run_one, jobs), total=len(jobs), desc="concealed study"):
                 writer.writerow(row)
                 handle.flush()
                 rows.append({k: str(v) for k, v in row.items()})
     summary = summarize(rows)
-    write_outputs(summary)
-    print(json.dumps({k: summary[k] for k in ("accuracy", "false_alarm_rate", "seconds_per_recording")}))
+    write_outputs(summary, rows)
+    print(markdown(summary).split("\n## ")[0])
 
 
 if __name__ == "__main__":

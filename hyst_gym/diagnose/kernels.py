@@ -31,7 +31,7 @@ import numpy as np
 import scipy.linalg
 from numba import njit
 
-from ..physics.hysteresis import magnetization_slope
+from ..physics.hysteresis import advance_shared, magnetization_slope
 
 #: Columns of the per-member magnetic parameter matrix used by :func:`simulate_members`.
 MAGNETIC_COLUMNS = ("a", "k", "alpha", "Ms", "c", "H0", "k_e", "heating", "tau_th", "beta_Ms")
@@ -61,57 +61,97 @@ def simulate_members(time, field, params, kind, max_field_step, ambient):
     """Magnetization (A/m), shape ``(T, B)``, of ``B`` extended models under one field.
 
     ``params`` has shape ``(B, 10)`` with the columns of :data:`MAGNETIC_COLUMNS`.
+    Members without eddy currents or heating that see the same bias H0 share one field:
+    they run together through the physics bank kernel (members in the inner, vectorized
+    loop), which is several times faster than one member after the other. The others
+    (and the arithmetic of both paths) follow the same midpoint rule of (6).
     """
     n_samples = time.shape[0]
     n_members = params.shape[0]
     out = np.empty((n_samples, n_members))
+    done = np.zeros(n_members, dtype=np.bool_)
     for b in range(n_members):
-        a0 = params[b, 0]
-        k = params[b, 1]
-        alpha = params[b, 2]
-        Ms0 = params[b, 3]
-        c = params[b, 4]
-        H0 = params[b, 5]
-        k_e = params[b, 6]
-        heating = params[b, 7]
-        tau = params[b, 8]
-        beta = params[b, 9]
-        m = _advance(0.0, 0.0, field[0] + H0, a0, k, alpha, Ms0, c, kind, max_field_step)
-        he = field[0] + H0
-        theta = 0.0
-        out[0, b] = m
-        a = a0
-        Ms = Ms0
-        for t in range(1, n_samples):
-            dt = time[t] - time[t - 1]
-            if heating != 0.0:
-                h_sq = (field[t - 1] * field[t - 1] + field[t - 1] * field[t] + field[t] * field[t]) / 3.0
-                decay = math.exp(-dt / tau)
-                theta = theta * decay + heating * h_sq * tau * (1.0 - decay)
-                a = a0 * (ambient + theta) / ambient
-                Ms = Ms0 * (1.0 - beta * theta)
-                if Ms < 1e-3 * Ms0:
-                    Ms = 1e-3 * Ms0
-            target = field[t] + H0
-            if k_e > 0.0:
-                gap = target - he
-                delta = 1.0 if gap > 0.0 else -1.0
-                chi = magnetization_slope(he, m, delta, a, k, alpha, Ms, c, kind)
+        if done[b] or params[b, 6] != 0.0 or params[b, 7] != 0.0:
+            continue
+        members = np.zeros(n_members, dtype=np.bool_)
+        for j in range(b, n_members):
+            members[j] = (not done[j]) and params[j, 6] == 0.0 and params[j, 7] == 0.0 and params[j, 5] == params[b, 5]
+        group = np.flatnonzero(members)
+        _simulate_shared_field(field + params[b, 5], params[group], kind, max_field_step, out, group)
+        done[group] = True
+    for b in range(n_members):
+        if not done[b]:
+            _simulate_one(time, field, params[b], kind, max_field_step, ambient, out, b)
+    return out
+
+
+@njit(cache=True)
+def _simulate_shared_field(field, params, kind, max_field_step, out, columns):
+    # every member starts demagnetized at H = 0 and is brought to the first sample
+    a = np.ascontiguousarray(params[:, 0])
+    k = np.ascontiguousarray(params[:, 1])
+    alpha = np.ascontiguousarray(params[:, 2])
+    Ms = np.ascontiguousarray(params[:, 3])
+    c = np.ascontiguousarray(params[:, 4])
+    m = np.zeros(params.shape[0])
+    advance_shared(m, 0.0, field[0], a, k, alpha, Ms, c, kind, max_field_step)
+    for i in range(columns.shape[0]):
+        out[0, columns[i]] = m[i]
+    for t in range(1, field.shape[0]):
+        advance_shared(m, field[t - 1], field[t], a, k, alpha, Ms, c, kind, max_field_step)
+        for i in range(columns.shape[0]):
+            out[t, columns[i]] = m[i]
+
+
+@njit(cache=True)
+def _simulate_one(time, field, row, kind, max_field_step, ambient, out, b):
+    """One extended member (eddy currents or heating), sample after sample, into ``out[:, b]``."""
+    n_samples = time.shape[0]
+    a0 = row[0]
+    k = row[1]
+    alpha = row[2]
+    Ms0 = row[3]
+    c = row[4]
+    H0 = row[5]
+    k_e = row[6]
+    heating = row[7]
+    tau = row[8]
+    beta = row[9]
+    m = _advance(0.0, 0.0, field[0] + H0, a0, k, alpha, Ms0, c, kind, max_field_step)
+    he = field[0] + H0
+    theta = 0.0
+    out[0, b] = m
+    a = a0
+    Ms = Ms0
+    for t in range(1, n_samples):
+        dt = time[t] - time[t - 1]
+        if heating != 0.0:
+            h_sq = (field[t - 1] * field[t - 1] + field[t - 1] * field[t] + field[t] * field[t]) / 3.0
+            decay = math.exp(-dt / tau)
+            theta = theta * decay + heating * h_sq * tau * (1.0 - decay)
+            a = a0 * (ambient + theta) / ambient
+            Ms = Ms0 * (1.0 - beta * theta)
+            if Ms < 1e-3 * Ms0:
+                Ms = 1e-3 * Ms0
+        target = field[t] + H0
+        if k_e > 0.0:
+            gap = target - he
+            delta = 1.0 if gap > 0.0 else -1.0
+            chi = magnetization_slope(he, m, delta, a, k, alpha, Ms, c, kind)
+            d_he = gap / (1.0 + k_e * chi / dt)
+            m_new = _advance(m, he, he + d_he, a, k, alpha, Ms, c, kind, max_field_step)
+            if d_he != 0.0:
+                chi = (m_new - m) / d_he
+                if chi < 0.0:
+                    chi = 0.0
                 d_he = gap / (1.0 + k_e * chi / dt)
                 m_new = _advance(m, he, he + d_he, a, k, alpha, Ms, c, kind, max_field_step)
-                if d_he != 0.0:
-                    chi = (m_new - m) / d_he
-                    if chi < 0.0:
-                        chi = 0.0
-                    d_he = gap / (1.0 + k_e * chi / dt)
-                    m_new = _advance(m, he, he + d_he, a, k, alpha, Ms, c, kind, max_field_step)
-                m = m_new
-                he = he + d_he
-            else:
-                m = _advance(m, he, target, a, k, alpha, Ms, c, kind, max_field_step)
-                he = target
-            out[t, b] = m
-    return out
+            m = m_new
+            he = he + d_he
+        else:
+            m = _advance(m, he, target, a, k, alpha, Ms, c, kind, max_field_step)
+            he = target
+        out[t, b] = m
 
 
 @njit(cache=True)
@@ -160,8 +200,20 @@ def lti_response(time, forcing, A, B, C, *, start="rest", classes=None):
     A = np.atleast_2d(np.asarray(A, dtype=np.float64))
     B = np.asarray(B, dtype=np.float64).reshape(-1)
     C = np.asarray(C, dtype=np.float64).reshape(-1)
-    order = A.shape[0]
     steps, index = step_classes(time) if classes is None else classes
+    phis, gamma0s, gamma1s = _first_order_hold(A, B, steps)
+    forcing = np.ascontiguousarray(forcing, dtype=np.float64)
+    if start == "steady":
+        x0 = -np.linalg.solve(A, B * forcing[0])
+    else:
+        x0 = np.zeros(A.shape[0])
+    return _step_lti(forcing, index, phis, gamma0s, gamma1s, C, x0)
+
+
+def _first_order_hold(A, B, steps):
+    """Exact discretization of ``x' = A x + B u`` for ``u`` linear over each step, one per step
+    length: ``x+ = phi x + gamma0 u + gamma1 u+``."""
+    order = A.shape[0]
     phis = np.empty((steps.size, order, order))
     gamma0s = np.empty((steps.size, order))
     gamma1s = np.empty((steps.size, order))
@@ -176,12 +228,46 @@ def lti_response(time, forcing, A, B, C, *, start="rest", classes=None):
         ramp = exp[:order, order + 1]
         gamma0s[j] = zero_hold - ramp
         gamma1s[j] = ramp
+    return phis, gamma0s, gamma1s
+
+
+@njit(cache=True)
+def _step_varying_stiffness(forcing, relative_stiffness, stiffness, classes, phis, gamma0s, gamma1s, x0):
+    # The stiffness change enters as a force -stiffness*e(t)*x on the exactly discretized
+    # constant-stiffness system; a predictor-corrector step makes that coupling second order.
+    n = forcing.shape[0]
+    out = np.empty(n)
+    x_pos, x_vel = x0[0], x0[1]
+    out[0] = x_pos
+    for t in range(1, n):
+        j = classes[t - 1]
+        u_start = forcing[t - 1] - stiffness * relative_stiffness[t - 1] * x_pos
+        guess = x_pos
+        for _ in range(2):
+            u_end = forcing[t] - stiffness * relative_stiffness[t] * guess
+            new_pos = (phis[j, 0, 0] * x_pos + phis[j, 0, 1] * x_vel + gamma0s[j, 0] * u_start
+                       + gamma1s[j, 0] * u_end)
+            guess = new_pos
+        new_vel = (phis[j, 1, 0] * x_pos + phis[j, 1, 1] * x_vel + gamma0s[j, 1] * u_start
+                   + gamma1s[j, 1] * u_end)
+        x_pos, x_vel = new_pos, new_vel
+        out[t] = x_pos
+    return out
+
+
+def varying_stiffness_response(time, forcing, relative_stiffness, stiffness, damping, *, classes=None):
+    """Displacement (m) of ``x'' + damping*x' + stiffness*(1 + e(t))*x = u(t)`` (the Delta-E
+    effect on the lumped model (13)), starting at the static equilibrium of the first sample.
+
+    ``forcing`` u in m/s^2, ``relative_stiffness`` e (dimensionless, > -1), ``stiffness`` in
+    1/s^2, ``damping`` in 1/s; both samples linear between samples."""
+    steps, index = step_classes(time) if classes is None else classes
+    A, B, _ = second_order_system(stiffness, damping, 1.0)
+    phis, gamma0s, gamma1s = _first_order_hold(A, B, steps)
     forcing = np.ascontiguousarray(forcing, dtype=np.float64)
-    if start == "steady":
-        x0 = -np.linalg.solve(A, B * forcing[0])
-    else:
-        x0 = np.zeros(order)
-    return _step_lti(forcing, index, phis, gamma0s, gamma1s, C, x0)
+    relative = np.ascontiguousarray(np.maximum(relative_stiffness, -0.95), dtype=np.float64)
+    x0 = np.array([forcing[0] / (stiffness * (1.0 + relative[0])), 0.0])
+    return _step_varying_stiffness(forcing, relative, float(stiffness), index, phis, gamma0s, gamma1s, x0)
 
 
 def second_order_system(stiffness, damping, gain):
@@ -195,7 +281,7 @@ def first_order_system(rate, gain):
 
 
 __all__ = ["AMBIENT_TEMPERATURE", "MAGNETIC_COLUMNS", "first_order_system", "lti_response",
-           "second_order_system", "simulate_members", "step_classes"]
+           "second_order_system", "simulate_members", "step_classes", "varying_stiffness_response"]
 
 
 #: The compiled first-order-hold stepping loop, for models that build their own discretization.

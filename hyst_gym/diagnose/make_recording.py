@@ -30,7 +30,9 @@ Effects at ``strength = 1`` (the default; strength scales the effect's size):
   cannot reproduce the second resonance.
 * ``sensor_lag``: a first-order lag of 2-4 samples on every output sensor;
 * ``field_bias``: an unrecorded DC field of 10-20 % of the drive amplitude (a permanent magnet);
-* ``anhysteretic_shape``: Langevin (3) instead of Ising (2) (strength does not apply).
+* ``anhysteretic_shape``: Langevin (3) instead of Ising (2) (strength does not apply);
+* ``delta_e``: the stiffness follows the magnetization, ``khat*(1 + delta_e*((M/Ms)^2 - (M0/Ms)^2))``
+  with delta_e 0.3-0.8.
 """
 
 from __future__ import annotations
@@ -42,7 +44,8 @@ import numpy as np
 
 from ..physics.fem import FEMRod
 from ..physics.transducers import RodParams
-from .kernels import AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, lti_response, second_order_system, simulate_members
+from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, lti_response, second_order_system, simulate_members,
+                      varying_stiffness_response)
 from .model import EFFECTS, PAPER_CHAT, PAPER_KHAT
 from .recording import Recording, write_recording
 
@@ -129,8 +132,10 @@ def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: flo
         raise ValueError(f"--output must be magnetization, displacement or both, got {output!r}")
     if not (np.isfinite(strength) and strength >= 0):
         raise ValueError(f"--strength must be a finite number >= 0, got {strength!r}")
-    if output == "magnetization" and effect in ("quadratic_magnetostriction", "rod_dynamics"):
+    if output == "magnetization" and effect in ("quadratic_magnetostriction", "rod_dynamics", "delta_e"):
         raise ValueError(f"--effect {effect} acts on the displacement only; use --output displacement or both")
+    if int(seed) < 0:
+        raise ValueError(f"--seed must be >= 0, got {seed!r}")
     if int(n_samples) < 400:
         raise ValueError(f"--samples must be >= 400, got {n_samples!r}")
     n_samples = int(n_samples)
@@ -186,8 +191,13 @@ def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: flo
             forcing = zetahat / (2 * ref) * ((1 - strength) * linear + strength * (magnetization ** 2 - M0 ** 2))
         else:
             forcing = zetahat * (magnetization - M0)
-        A, B, C = second_order_system(khat, chat, 1.0)
-        displacement = lti_response(fine_time, forcing, A, B, C, start="steady")
+        if effect == "delta_e":
+            delta_e = strength * effect_rng.uniform(0.3, 0.8)
+            relative = delta_e * ((magnetization / Ms) ** 2 - (M0 / Ms) ** 2)
+            displacement = varying_stiffness_response(fine_time, forcing, relative, khat, chat)
+        else:
+            A, B, C = second_order_system(khat, chat, 1.0)
+            displacement = lti_response(fine_time, forcing, A, B, C, start="steady")
     outputs = {"magnetization": magnetization, "displacement": displacement}
     if effect == "sensor_lag":
         tau = strength * effect_rng.uniform(2.0, 4.0) / fs
@@ -212,7 +222,8 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--effect", required=True, choices=GENERATOR_EFFECTS, help="concealed effect")
     parser.add_argument("--seed", type=int, required=True, help="seed for parameters, excitation and noise")
     parser.add_argument("--strength", type=float, default=1.0, help="size of the effect (default 1)")
-    parser.add_argument("--output", default="both", choices=("magnetization", "displacement", "both"))
+    parser.add_argument("--output", default="both", choices=("magnetization", "displacement", "both"),
+                        help="channels to record besides the field (default both)")
     parser.add_argument("--samples", type=int, default=5000, help="number of samples (default 5000)")
     parser.add_argument("--out", required=True, type=Path, help="CSV file to write (sidecar .json beside it)")
 

@@ -19,9 +19,10 @@ EFFECT_WORDS = {
     "sensor_lag": "sensor lag: a first-order lag in the output sensor(s)",
     "field_bias": "an unrecorded DC bias field H0 (e.g. a permanent magnet) added to H",
     "anhysteretic_shape": "the other anhysteretic curve (Ising (2) <-> Langevin (3))",
+    "delta_e": "the Delta-E effect: the transducer's stiffness changes with its magnetization",
 }
 UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "tau_th": "s", "beta_Ms": "1/K", "tau_m": "s", "tau_x": "s",
-         "zeta_q": "m/s^2 per (A/m)^2", "f2": "Hz", "zeta2": "", "g2": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "",
+         "zeta_q": "m/s^2 per (A/m)^2", "f2": "Hz", "damping2": "", "g2": "", "delta_e": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "",
          "alpha": ""}
 
 
@@ -36,7 +37,15 @@ def _fmt(name, values, sigmas):
 
 
 def explain(report) -> str:
-    """One paragraph in plain words: the effect, the evidence, the added model, the errors."""
+    """One paragraph in plain words: the effect, the evidence, the added model, the errors,
+    then whatever the checks of :mod:`.decide` found (rejected candidates, pinned mechanics)."""
+    text = _verdict_words(report)
+    if report.notes:
+        text += " Notes: " + "; ".join(report.notes) + "."
+    return text
+
+
+def _verdict_words(report) -> str:
     base = report.baseline_heldout
     loc = report.located["summary"]
     if report.verdict == "none":
@@ -47,6 +56,12 @@ def explain(report) -> str:
                 f"recording to within noise: its held-out RMSE is {base:.2f} noise units on the last "
                 f"{100 * (1 - report.split_index / report.baseline.model.recording.size):.0f} % of the record, "
                 f"and no extension from the vocabulary beats it beyond noise.{tail} Verdict: none.")
+    if report.verdict == "ambiguous":
+        listed = ", ".join(f"{c.effect} ({100 * c.improvement:.0f} % lower held-out RMSE, "
+                           f"{c.heldout_rmse:.2f} noise units)" for c in report.tied)
+        return (f"The base model misses (held-out RMSE {base:.2f} noise units): {loc}. Several extensions explain "
+                f"the held-out block about equally well: {listed}. The channels recorded here cannot tell them "
+                f"apart. To separate them: {report.advice}. Verdict: ambiguous (confidence {report.confidence:.2f}).")
     if report.verdict == "unexplained":
         ranked = sorted(report.candidates, key=lambda c: -c.improvement)
         tried = ", ".join(f"{c.effect} {100 * c.improvement:+.0f} %" for c in ranked[:3])

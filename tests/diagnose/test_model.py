@@ -108,3 +108,46 @@ def test_rod_dynamics_generator_excites_a_visible_second_mode():
         freq, damping = np.abs(poles) / (2 * np.pi), -poles.real / np.abs(poles)
         assert 2.5 * freq[0] < freq[1] < 12e3 and damping[1] < 0.15   # the default cD=3e6 Pa s overdamps it
         assert static > 0
+
+
+def test_rod_mode_damping_and_the_m2_gain_are_separate_parameters():
+    # zeta2 is the M^2 gain of lumped_nonlinear (12); the rod mode's damping ratio is damping2.
+    # Before they were split, one overwrote the other in lumped_nonlinear x rod_dynamics.
+    from hyst_gym.diagnose.make_recording import make_recording
+    from hyst_gym.diagnose.model import Model, Structure, base_parameters, extension_parameters
+
+    recording, _ = make_recording("none", 2, n_samples=1500, output="displacement")
+    structure = Structure("lumped_nonlinear", "ising", "rod_dynamics")
+    params = base_parameters(recording, structure)
+    params.update(extension_parameters(recording, structure, {n: p.value for n, p in params.items()}))
+    assert {"zeta2", "damping2", "f2", "g2"} <= set(params)
+    assert params["zeta2"].unit != params["damping2"].unit
+    model = Model(recording, structure, params, max_field_step=float(np.ptp(recording.field)) / 400)
+    values = dict(model.values(), M0=0.0, g2=0.3, f2=9e3)
+    m = model.magnetization([values])[:, 0]
+    x = model.displacement(values, m)
+    # the M^2 gain scales the whole (linear-in-gain) response ...
+    np.testing.assert_allclose(model.displacement(dict(values, zeta2=2 * values["zeta2"]), m), 2 * x, rtol=1e-9)
+    # ... while the mode's damping changes its shape, not its scale
+    damped = model.displacement(dict(values, damping2=1.5), m)
+    ratio = damped / np.where(np.abs(x) > 1e-3 * np.ptp(x), x, np.nan)
+    assert np.nanstd(ratio) > 1e-3
+
+
+def test_delta_e_displacement_matches_an_independent_integration():
+    from scipy.integrate import solve_ivp
+
+    from hyst_gym.diagnose.kernels import varying_stiffness_response
+
+    time = np.arange(3000) / 40e3
+    forcing = 5e1 * np.sin(2 * np.pi * 250 * time) + 2e1 * np.sin(2 * np.pi * 1900 * time)   # m/s^2
+    relative = 0.5 * np.sin(2 * np.pi * 90 * time) ** 2
+    khat, chat = 6.4251e7, 7.8899e3
+    x = varying_stiffness_response(time, forcing, relative, khat, chat)
+    sol = solve_ivp(lambda t, y: [y[1], np.interp(t, time, forcing) - chat * y[1]
+                                  - khat * (1 + np.interp(t, time, relative)) * y[0]],
+                    (0, time[-1]), [x[0], 0.0], t_eval=time, method="DOP853", rtol=1e-10, atol=1e-15,
+                    max_step=5e-6)
+    effect = np.max(np.abs(x - varying_stiffness_response(time, forcing, 0 * relative, khat, chat)))
+    assert effect > 0.1 * np.ptp(x)                       # the stiffness change is large here ...
+    assert np.max(np.abs(sol.y[0] - x)) < 1e-3 * np.ptp(x)  # ... and integrated to 0.1 % of the response

@@ -1,0 +1,208 @@
+"""Stage 4: the verdict, with what a physicist checks before naming an effect.
+
+A candidate extension is *accepted* when it lowers the held-out RMSE by at least
+``ACCEPT_IMPROVEMENT`` and the BIC on the fitting block by more than ``ACCEPT_DELTA_BIC``.
+An accepted candidate is then *plausible* only if
+
+1. its parameters are not pinned at a bound of their physical range (a bias field as large
+   as the drive, a lag of several per cent of the record): a fit that runs into a wall is
+   mimicking something else;
+2. its main parameter agrees across ``BLOCKS`` independent time blocks of the record (each
+   refitted alone, the rest held at the candidate's fit): a real effect has one value, while
+   a vocabulary effect that stands in for something outside the vocabulary is pulled to
+   different values by the different excitation in each block;
+3. a bias field shows in the data: ``field_bias`` is rejected when its H0 is much larger than
+   the horizontal offset of the recorded loop itself.
+
+Verdicts:
+
+* a single effect -- the plausible candidate with the lowest held-out RMSE, when no other
+  plausible candidate comes within ``TIE_SHARE`` of its held-out reduction and it halves the
+  base model's held-out RMSE or brings it within ``EXPLAINED_RMSE`` noise units;
+* ``ambiguous`` -- several plausible candidates explain the held-out block equally well; the
+  report lists them and names the measurement that would separate them;
+* ``unexplained`` -- the base model misses by more than ``UNEXPLAINED_RMSE`` noise units and
+  no plausible candidate explains most of it; the report says where the residual lives;
+* ``none`` -- the base model predicts the held-out block to within noise.
+
+``confidence`` (0-1) is the margin of the verdict over its nearest alternative, as a share
+of the held-out reduction: for a single effect, ``1 - reduction(runner-up)/reduction(winner)``
+(0: the runner-up does as well, 1: no other candidate helps at all); for ``ambiguous``, the
+same margin of the weakest listed candidate over the best unlisted one; for ``none``,
+``1 - best improvement / ACCEPT_IMPROVEMENT``; for ``unexplained``,
+``1 - UNEXPLAINED_RMSE / base RMSE``. It is an observed margin, not a probability; its
+calibration (how often verdicts at each confidence are right) is measured in
+``experiments/diagnose_concealed.py`` and reported in its reliability table.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field as dataclass_field, replace
+
+import numpy as np
+
+from .fit import local_fit
+from .identifiability import separating_measurement
+from .model import EFFECT_PARAMETERS, Model
+
+ACCEPT_IMPROVEMENT = 0.20
+ACCEPT_DELTA_BIC = 10.0
+UNEXPLAINED_RMSE = 1.5
+#: A named effect must bring the held-out RMSE within this many noise units, or halve it.
+EXPLAINED_RMSE = 2.0
+#: Another plausible candidate reaching this share of the winner's held-out reduction ties with it.
+TIE_SHARE = 0.85
+#: Independent time blocks for the consistency check.
+BLOCKS = 3
+#: Block estimates of the main parameter agree when they lie within this relative spread...
+CONSISTENCY_SPREAD = 0.5
+#: ...or within this many of their own standard errors of each other.
+CONSISTENCY_SIGMAS = 3.0
+#: Parameters whose bounds are search ranges rather than physical walls (a fit may end there).
+SEARCH_RANGES_ONLY = ("tau_th", "g2", "damping2")
+#: The parameter each effect is identified by (refitted per block).
+MAIN_PARAMETER = {"field_bias": "H0", "eddy_current": "k_e", "thermal_drift": "heating",
+                  "quadratic_magnetostriction": "zeta_q", "rod_dynamics": "f2", "delta_e": "delta_e"}
+
+
+@dataclass
+class Plausibility:
+    """Why an accepted candidate may (or may not) be named."""
+
+    plausible: bool = True
+    reasons: list = dataclass_field(default_factory=list)
+    block_values: list = dataclass_field(default_factory=list)
+
+    def reject(self, reason: str):
+        self.plausible = False
+        self.reasons.append(reason)
+
+
+def sensor_lag_parameter(model: Model) -> str:
+    return "tau_x" if model.parameters.get("tau_x") is not None and model.parameters["tau_x"].free else "tau_m"
+
+
+def check_plausibility(candidate, weights, blocks: int = BLOCKS) -> Plausibility:
+    """The three checks of the module docstring for one accepted candidate."""
+    out = Plausibility()
+    fit = candidate.fit
+    model = fit.model
+    for name in EFFECT_PARAMETERS[candidate.effect]:
+        p = model.parameters.get(name)
+        if p is None or not p.free or name in SEARCH_RANGES_ONLY:
+            continue
+        value = fit.values[name]
+        span = p.upper - p.lower
+        if min(abs(value - p.lower), abs(p.upper - value)) < 1e-3 * span and value != 0.0:
+            out.reject(f"{name} = {value:.4g} sits at the bound of its physical range "
+                       f"[{p.lower:.4g}, {p.upper:.4g}]")
+    main = (sensor_lag_parameter(model) if candidate.effect == "sensor_lag"
+            else MAIN_PARAMETER.get(candidate.effect))
+    if main is not None:
+        values, sigmas = block_estimates(fit, main, weights, blocks)
+        out.block_values = values
+        if not consistent(values, sigmas):
+            out.reject(f"{main} disagrees across {blocks} time blocks of the record "
+                       f"({', '.join(f'{v:.3g}' for v in values)}): one physical effect would give one value")
+    if candidate.effect == "field_bias":
+        visible = visible_loop_offset(model.recording)
+        bias = fit.values["H0"]
+        h_max = float(np.max(np.abs(model.recording.field)))
+        if visible is not None and abs(bias) > 3.0 * abs(visible) + 0.01 * h_max:
+            out.reject(f"a bias field of {bias:.3g} A/m would shift the recorded loop, but the loop is centred "
+                       f"within {abs(visible):.2g} A/m")
+    return out
+
+
+def block_estimates(fit, name, weights, blocks):
+    """``name`` refitted alone on each of ``blocks`` contiguous time blocks (whole record)."""
+    model = fit.model
+    only = {n: (p if n == name else replace(p, free=False)) for n, p in model.parameters.items()}
+    block_model = Model(model.recording, model.structure, only, model.max_field_step).with_values(fit.values)
+    n = model.recording.size
+    edges = np.linspace(0, n, blocks + 1).astype(int)
+    values, sigmas = [], []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        mask = np.zeros(n, dtype=bool)
+        mask[lo:hi] = True
+        result = local_fit(block_model, weights, mask, fit.values, max_nfev=12)
+        values.append(float(result.values[name]))
+        sigmas.append(float(result.uncertainties.get(name, np.nan)))
+    return values, sigmas
+
+
+def consistent(values, sigmas) -> bool:
+    """Block estimates agree: same sign and a small relative spread, or within their errors."""
+    values = np.asarray(values, dtype=float)
+    sigmas = np.asarray(sigmas, dtype=float)
+    center = float(np.median(values))
+    if center != 0.0 and np.all(np.sign(values) == np.sign(center)):
+        if np.ptp(values) <= CONSISTENCY_SPREAD * abs(center):
+            return True
+    sigma = np.where(np.isfinite(sigmas), sigmas, 0.0)
+    return bool(np.all(np.abs(values - center) <= CONSISTENCY_SIGMAS * np.hypot(sigma, np.median(sigma))))
+
+
+def visible_loop_offset(recording):
+    """Horizontal centre (A/m) of the recorded loop: the mean of the fields at which the first
+    output crosses its mid-level on rising and on falling field; None if it never does both."""
+    output = recording.output(recording.channels[0])
+    field = recording.field
+    level = 0.5 * (np.max(output) + np.min(output))
+    above = output >= level
+    crossing = np.flatnonzero(above[1:] != above[:-1])
+    rising = [field[i] for i in crossing if field[i + 1] > field[i]]
+    falling = [field[i] for i in crossing if field[i + 1] < field[i]]
+    if not rising or not falling:
+        return None
+    return 0.5 * (float(np.median(rising)) + float(np.median(falling)))
+
+
+@dataclass
+class Decision:
+    verdict: str
+    confidence: float
+    chosen: object = None
+    tied: list = dataclass_field(default_factory=list)
+    advice: str = ""
+    notes: list = dataclass_field(default_factory=list)
+
+
+def reduction(candidate, base_heldout):
+    return base_heldout - candidate.heldout_rmse
+
+
+def decide(candidates, base_heldout, channels) -> Decision:
+    """The verdict from fitted, accepted and plausibility-checked candidates (module docstring)."""
+    plausible = sorted([c for c in candidates if c.accepted and c.plausibility.plausible],
+                       key=lambda c: c.heldout_rmse)
+    rejected = [c for c in candidates if c.accepted and not c.plausibility.plausible]
+    notes = [f"{c.effect} fitted better ({100 * c.improvement:.0f} % held-out) but was not named: "
+             f"{'; '.join(c.plausibility.reasons)}" for c in rejected]
+    if plausible:
+        best = plausible[0]
+        best_reduction = reduction(best, base_heldout)
+        tied = [c for c in plausible if reduction(c, base_heldout) >= TIE_SHARE * best_reduction]
+        others = [c for c in candidates if c not in tied]
+        runner = max([reduction(c, base_heldout) for c in others] + [0.0])
+        explained = best.heldout_rmse <= EXPLAINED_RMSE or best.heldout_rmse <= 0.5 * base_heldout
+        if not explained:
+            notes.append(f"{best.effect} explains part of the mismatch ({100 * best.improvement:.0f} % lower "
+                         f"held-out RMSE) but leaves {best.heldout_rmse:.2f} noise units")
+            return Decision("unexplained", float(np.clip(1.0 - EXPLAINED_RMSE / best.heldout_rmse, 0.0, 1.0)),
+                            notes=notes)
+        weakest = min(reduction(c, base_heldout) for c in tied)
+        confidence = float(np.clip(1.0 - max(runner, 0.0) / weakest, 0.0, 1.0))
+        if len(tied) == 1:
+            return Decision(best.effect, confidence, chosen=best, tied=tied, notes=notes)
+        effects = [c.effect for c in tied]
+        return Decision("ambiguous", confidence, chosen=best, tied=tied,
+                        advice=separating_measurement(channels, effects), notes=notes)
+    best_improvement = max([c.improvement for c in candidates] + [0.0])
+    if base_heldout > UNEXPLAINED_RMSE:
+        return Decision("unexplained", float(np.clip(1.0 - UNEXPLAINED_RMSE / base_heldout, 0.0, 1.0)), notes=notes)
+    return Decision("none", float(np.clip(1.0 - best_improvement / ACCEPT_IMPROVEMENT, 0.0, 1.0)), notes=notes)
+
+
+__all__ = ["ACCEPT_DELTA_BIC", "ACCEPT_IMPROVEMENT", "Decision", "EXPLAINED_RMSE", "Plausibility",
+           "UNEXPLAINED_RMSE", "check_plausibility", "consistent", "decide", "visible_loop_offset"]

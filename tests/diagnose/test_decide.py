@@ -1,0 +1,99 @@
+"""The decision stage: ties give `ambiguous` with a separating measurement, implausible fits are
+not named, and each plausibility check responds to the physics it is about."""
+
+import numpy as np
+import pytest
+
+from hyst_gym.diagnose import diagnose, make_recording
+from hyst_gym.diagnose.decide import Plausibility, consistent, decide, visible_loop_offset
+from hyst_gym.diagnose.identifiability import channel_set, invisible_effects, separating_measurement
+from hyst_gym.diagnose.recording import Recording
+
+
+class _Candidate:
+    """The attributes of core.Candidate that decide() reads."""
+
+    def __init__(self, effect, heldout_rmse, base=10.0, plausible=True, reasons=()):
+        self.effect = effect
+        self.heldout_rmse = heldout_rmse
+        self.improvement = 1.0 - heldout_rmse / base
+        self.accepted = self.improvement >= 0.2
+        self.plausibility = Plausibility(plausible, list(reasons))
+
+
+def test_clear_winner_is_named_with_its_margin():
+    candidates = [_Candidate("sensor_lag", 1.0), _Candidate("rod_dynamics", 7.0), _Candidate("field_bias", 9.9)]
+    decision = decide(candidates, 10.0, ("displacement",))
+    assert decision.verdict == "sensor_lag" and decision.chosen.effect == "sensor_lag"
+    # margin: the runner-up's reduction (3) against the winner's (9)
+    assert decision.confidence == pytest.approx(1.0 - 3.0 / 9.0)
+
+
+def test_tie_is_ambiguous_and_names_the_separating_measurement():
+    candidates = [_Candidate("sensor_lag", 1.0), _Candidate("rod_dynamics", 1.3), _Candidate("field_bias", 9.0)]
+    decision = decide(candidates, 10.0, ("displacement",))
+    assert decision.verdict == "ambiguous"
+    assert [c.effect for c in decision.tied] == ["sensor_lag", "rod_dynamics"]
+    assert "magnetization" in decision.advice and "resonance" in decision.advice
+    # with both channels recorded, the remaining way to separate them is a broadband drive
+    both = decide(candidates, 10.0, ("magnetization", "displacement"))
+    assert both.verdict == "ambiguous" and "resonance" in both.advice and "record the magnetization" not in both.advice
+
+
+def test_implausible_fit_is_not_named_and_the_report_says_why():
+    candidates = [_Candidate("field_bias", 0.5, plausible=False, reasons=["H0 sits at the bound"]),
+                  _Candidate("eddy_current", 9.5)]
+    decision = decide(candidates, 10.0, ("magnetization",))
+    assert decision.verdict == "unexplained"
+    assert any("field_bias" in note and "H0 sits at the bound" in note for note in decision.notes)
+    assert decide(candidates, 1.2, ("magnetization",)).verdict == "none"
+
+
+def test_partial_explanation_is_not_a_name():
+    # 30 % better but still 7 noise units off: neither halved nor within 2 noise units
+    decision = decide([_Candidate("thermal_drift", 7.0)], 10.0, ("magnetization",))
+    assert decision.verdict == "unexplained" and "leaves 7.00 noise units" in decision.notes[-1]
+
+
+def test_block_consistency():
+    assert consistent([1.0, 1.2, 0.9], [0.01, 0.01, 0.01])          # one value, small spread
+    assert not consistent([1.0, 3.0, -0.5], [0.01, 0.01, 0.01])     # a stand-in pulled around
+    assert consistent([1.0, 3.0, 2.0], [2.0, 2.0, 2.0])             # within its own errors
+
+
+def test_visible_loop_offset_finds_a_shifted_loop():
+    t = np.linspace(0, 3, 3000)
+    H = 1e4 * np.sin(2 * np.pi * t)
+    branch = np.sign(np.gradient(H))
+    for shift in (0.0, 1500.0):
+        M = np.tanh((H + shift - 800 * branch) / 3000)     # coercive width 800 A/m, centre -shift
+        rec = Recording(time=t, field=H, magnetization=M)
+        assert visible_loop_offset(rec) == pytest.approx(-shift, abs=60)
+
+
+def test_identifiability_by_channel_set():
+    assert channel_set(("magnetization",)) == "magnetization"
+    assert channel_set(("magnetization", "displacement")) == "both"
+    assert set(invisible_effects(("magnetization",))) == {"quadratic_magnetostriction", "rod_dynamics", "delta_e"}
+    assert invisible_effects(("displacement",)) == ()
+    advice = separating_measurement(("displacement",), ["field_bias", "quadratic_magnetostriction"])
+    assert "magnetization" in advice
+
+
+def test_synthetic_time_axis_tries_no_rate_effect():
+    recording, _ = make_recording("none", 5, n_samples=1200, output="magnetization")
+    quasi_static = Recording(time=recording.time, field=recording.field, magnetization=recording.magnetization,
+                             metadata={"time_axis": "synthetic"})
+    report = diagnose(quasi_static, progress=False)
+    tried = {c.effect for c in report.candidates}
+    assert tried.isdisjoint({"eddy_current", "sensor_lag", "rod_dynamics"})
+    assert {"eddy_current", "sensor_lag"} <= set(report.skipped)
+    assert "synthetic" in report.to_json()["effects_not_tried"]["eddy_current"]
+
+
+def test_delta_e_recording_is_named_from_displacement_alone():
+    recording, _ = make_recording("delta_e", 3, n_samples=3000, output="displacement")
+    report = diagnose(recording, progress=False)
+    assert report.verdict == "delta_e" or (report.verdict == "ambiguous" and
+                                           "delta_e" in {c.effect for c in report.tied})
+    assert next(c for c in report.candidates if c.effect == "delta_e").improvement > 0.5
