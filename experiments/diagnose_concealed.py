@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from hyst_gym.diagnose import GENERATOR_EFFECTS, diagnose
+from hyst_gym.diagnose import EFFECTS, GENERATOR_EFFECTS, diagnose
 from hyst_gym.diagnose.identifiability import CHANNEL_SETS, MECHANICAL_EFFECTS
 from hyst_gym.diagnose.make_recording import make_recording_with_truth
 
@@ -54,9 +54,11 @@ BINS = (0.0, 0.2, 0.5, 0.8, 0.9, 1.0001)
 
 
 def independent_effects():
-    from experiments.independent_recordings import EFFECTS_IN_VOCABULARY, EFFECTS_OUTSIDE
+    """(inside, outside) the tool's vocabulary, judged by the tool's own EFFECTS list."""
+    from experiments.independent_recordings import ALL_EFFECTS
 
-    return tuple(EFFECTS_IN_VOCABULARY), tuple(EFFECTS_OUTSIDE)
+    inside = tuple(e for e in ALL_EFFECTS if e in EFFECTS or e == "none")
+    return inside, tuple(e for e in ALL_EFFECTS if e not in inside)
 
 
 def cases(generators, channel_sets, seeds, first_seed):
@@ -70,11 +72,19 @@ def cases(generators, channel_sets, seeds, first_seed):
             effects = [(e, True) for e in inside] + [(e, False) for e in outside]
         for channels in channel_sets:
             for effect, in_vocabulary in effects:
-                if channels == "magnetization" and effect in MECHANICAL_EFFECTS:
+                if channels == "magnetization" and (effect in MECHANICAL_EFFECTS or _displacement_only(generator, effect)):
                     continue
                 for seed in range(first_seed, first_seed + seeds):
                     out.append((generator, channels, effect, in_vocabulary, seed))
     return out
+
+
+def _displacement_only(generator, effect):
+    if generator == "own":
+        return False
+    from experiments.independent_recordings import EFFECT_SPECS
+
+    return EFFECT_SPECS[effect].displacement_only
 
 
 def make(generator, channels, effect, seed, samples):
@@ -88,7 +98,7 @@ def make(generator, channels, effect, seed, samples):
     recording, truth = generate(effect, seed, channels)
     return recording, {"sample_rate_hz": truth.get("sample_rate_hz", truth.get("sample_rate", "")),
                        "noise_relative": truth.get("noise_relative", truth.get("noise_rel", "")),
-                       "excitation": truth.get("excitation", truth.get("excitation_family", ""))}
+                       "excitation": truth.get("excitation_family", "")}
 
 
 def outcome(effect, in_vocabulary, verdict, tied):

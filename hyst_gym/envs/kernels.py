@@ -293,7 +293,8 @@ __all__ = ["clip_actions", "excitation_step", "fill_info", "fill_observation", "
 
 
 #: printed once per process, on stderr, before the first environment compiles its kernels
-COMPILE_NOTICE = "hyst-gym: compiling the simulation kernels (first use only, ~20 s; cached afterwards)"
+COMPILE_NOTICE = ("hyst-gym: compiling the simulation kernels (first use only, 20-60 s on 2 cores; "
+                  "cached afterwards)")
 _compile_notice_shown = False
 
 
