@@ -4,7 +4,7 @@ Two generators write the recordings:
 
 * ``own`` -- :func:`hyst_gym.diagnose.make_recording`, which shares the fitter's kernels;
 * ``independent`` -- :mod:`experiments.independent_recordings`, written separately: its own
-  integrators (RK4 in time on the hysteresis ODE, its own mechanics), its own excitation
+  integrators (an adaptive Dormand-Prince 5(4) in time on the hysteresis ODE, its own mechanics), its own excitation
   families (sines with minor loops, triangles, PRBS, chirps, a milling-like load), sampling
   rates of 10-60 kHz, noise of 0.1-1 % of peak-to-peak, record lengths and wider parameter
   ranges, none of which the fitter is told. It also conceals effects the tool does not model.
