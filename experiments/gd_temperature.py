@@ -1,0 +1,543 @@
+"""Temperature laws of the domain-wall model (6) on measured gadolinium B-H loops.
+
+Data: ``data/real/gd-temperature/gd_loops.npz`` (README there): eight temperatures,
+-38 ... +15 C (Curie point 18.3 C), three drive amplitudes each (major ~55 kA/m, mid
+~10 kA/m, minor ~400 A/m). Each record runs from H ~ 0 up the initial curve to +Hmax,
+down to -Hmax and back up to +Hmax. M = B/mu0 - H.
+
+Method
+------
+* Field cleaning: the record is cut at its two reversals (first maximum, minimum) into
+  three runs. Within each run the measured H is made monotone (mean of the running
+  maximum and the reversed running minimum, a cheap isotonic fit), which removes
+  the sampling noise that would otherwise act as spurious reversals (the minor loops have
+  ~10 A/m of noise on 400 A/m). The runs are then subsampled every ``stride`` samples,
+  always keeping the reversal samples. The model is rate independent, so this loses
+  nothing but resolution.
+* Model: eq. (6), Langevin anhysteretic, alpha = 0 (as in the source's fit), started at
+  the measured M of the first sample. Field substep min(50 A/m, Hpeak/200).
+* Laws (global parameters, one set for all temperatures; T in K; Tc = 291.45 K fixed):
+    - ``eq4``: the paper's law, a = a_ref T/T_ref (eq. 4), Ms, k, c constant (4 params);
+    - ``eq4_critical_ms``: a by eq. (4); Ms = Ms0 (1 - T/Tc)^beta; k = k0 (Ms/Ms0)^n_k;
+      c constant (6 params);
+    - ``critical``: Ms = Ms0 (1 - T/Tc)^beta; a = a0 (Ms/Ms0)^n_a; k = k0 (Ms/Ms0)^n_k;
+      c constant (7 params);
+    - ``smooth``: Ms = Ms0 (1 - T/Tc)^beta; log a and log k quadratic in (T - T_ref)/10 K;
+      c constant (9 params).
+  A per-temperature fit (five constant parameters at one temperature, all amplitudes) gives
+  the floor that no temperature law can beat.
+* Fit: ``scipy.optimize.least_squares`` (trf) in log coordinates for positive parameters
+  (linear for exponents), with bounds, on all three amplitudes of the fitted temperatures.
+  Residual per loop = (B_model - B_meas) / ptp(B_meas) / sqrt(n), so each loop weighs by
+  its NRMSE. The Jacobian is a forward difference computed as one batched simulation
+  (``simulate_batch``) per record.
+* Score: NRMSE of B = RMS(B_model - B_meas) / ptp(B_meas) over the LOOP PART of the
+  record (from the first positive peak to the end; the initial curve is simulated but not
+  scored), on the subsampled points.
+* Protocol: a fit on all temperatures (role ``fitted``), then leave-one-out over each
+  interior temperature (-30 ... +5 C): fit the other seven, predict the held-out
+  temperature at every amplitude (role ``predicted``).
+
+    .venv/bin/python -m experiments.gd_temperature [--data FILE] [--predict FILE] [--json FILE] [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from hyst_gym.physics.hysteresis import HysteresisBatch, simulate_batch
+from hyst_gym.physics.temperature_laws import (
+    GD_CURIE_K, Constant, CriticalPowerLaw, FollowsMs, LinearInT, LogPolynomial, TemperatureLaws,
+    celsius_to_kelvin,
+)
+
+MU0 = 4e-7 * np.pi
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_DATA = ROOT / "data" / "real" / "gd-temperature" / "gd_loops.npz"
+RESULTS_DIR = ROOT / "experiments" / "results" / "gd_temperature"
+FIGURES_DIR = ROOT / "docs" / "figures" / "gd_temperature"
+AMPLITUDES = ("major", "mid", "minor")
+T_REF_K = celsius_to_kelvin(-10.0).item()  # reference temperature of eq. (4), K
+ANHYSTERETIC = "langevin"
+FD_STEP = 1e-4  # forward-difference step in fit coordinates (log or linear)
+
+
+def tag_for(temperature_C: float) -> str:
+    """Key tag of a temperature: -38 -> 'm38C', 5 -> 'p05C', 0 -> 'p00C'."""
+    t = int(round(float(temperature_C)))
+    return f"{'m' if t < 0 else 'p'}{abs(t):02d}C"
+
+
+# --------------------------------------------------------------------------- data
+
+
+@dataclass(frozen=True)
+class Record:
+    """One measured record, cleaned and subsampled (H in A/m, B in T)."""
+
+    temperature_C: float
+    amplitude: str
+    field: np.ndarray
+    B: np.ndarray
+    loop_start: int  # index of the first positive peak in the subsampled record
+    M0: float  # measured M at the first sample, A/m
+    peak_field: float
+    max_field_step: float
+    asymmetry: float = 0.0  # (B(+Hmax) + B(-Hmax)) / 2 / ptp(B) on the loop; 0 for a symmetric loop
+
+    @property
+    def temperature_K(self) -> float:
+        return float(celsius_to_kelvin(self.temperature_C))
+
+
+def reversal_indices(H: np.ndarray) -> Tuple[int, int]:
+    """(first maximum, minimum) of a record that runs 0 -> +Hmax -> -Hmax -> +Hmax."""
+    i_min = int(np.argmin(H))
+    if i_min < 2 or i_min > H.size - 3:
+        raise ValueError("record does not run 0 -> +Hmax -> -Hmax -> +Hmax")
+    i_max = int(np.argmax(H[:i_min]))
+    if i_max < 1:
+        raise ValueError("record has no initial curve before its first maximum")
+    return i_max, i_min
+
+
+def _monotone(h: np.ndarray, increasing: bool) -> np.ndarray:
+    if not increasing:
+        return -_monotone(-h, True)
+    return 0.5 * (np.maximum.accumulate(h) + np.minimum.accumulate(h[::-1])[::-1])
+
+
+def clean_record(H, B, temperature_C, amplitude, stride=8) -> Record:
+    """Monotone runs between the reversals, subsampled every ``stride`` samples."""
+    H = np.asarray(H, dtype=np.float64)
+    B = np.asarray(B, dtype=np.float64)
+    if H.ndim != 1 or H.shape != B.shape or H.size < 20 or not (np.all(np.isfinite(H)) and np.all(np.isfinite(B))):
+        raise ValueError(f"{tag_for(temperature_C)}_{amplitude}: H and B must be finite 1-D arrays of equal length")
+    i_max, i_min = reversal_indices(H)
+    bounds = [0, i_max, i_min, H.size - 1]
+    clean = H.copy()
+    keep = []
+    for s, (lo, hi) in enumerate(zip(bounds[:-1], bounds[1:])):
+        clean[lo:hi + 1] = _monotone(H[lo:hi + 1], increasing=(s != 1))
+        keep.append(np.arange(lo, hi, max(1, int(stride))))
+    keep.append(np.array(bounds))
+    idx = np.unique(np.concatenate(keep))
+    loop_start = int(np.searchsorted(idx, i_max))
+    peak = float(np.max(np.abs(H)))
+    near = lambda i: float(np.mean(B[max(i - 10, 0):i + 11]))  # noqa: E731 - B at a reversal, averaged
+    span = float(np.ptp(B[i_max:]))
+    asymmetry = (near(i_max) + near(i_min)) / 2.0 / span if span > 0 else 0.0
+    return Record(float(temperature_C), amplitude, np.ascontiguousarray(clean[idx]), B[idx].copy(), loop_start,
+                  float(B[0] / MU0 - H[0]), peak, min(50.0, peak / 200.0), asymmetry)
+
+
+def load_records(path, stride=8, temperatures: Optional[Sequence[float]] = None) -> List[Record]:
+    """Records of an npz laid out like ``gd_loops.npz``; raises ValueError on a bad file."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"no such file: {path}")
+    try:
+        data = np.load(path, allow_pickle=False)
+    except Exception as exc:  # noqa: BLE001 - any unreadable file is a bad argument
+        raise ValueError(f"cannot read {path} as npz: {exc}") from None
+    with data:
+        if "temperatures_C" not in data.files:
+            raise ValueError(f"{path}: missing key 'temperatures_C'")
+        temps = np.atleast_1d(np.asarray(data["temperatures_C"], dtype=np.float64))
+        if temps.size == 0 or not np.all(np.isfinite(temps)):
+            raise ValueError(f"{path}: 'temperatures_C' must be non-empty and finite")
+        records = []
+        for T in temps:
+            if temperatures is not None and not np.any(np.isclose(T, temperatures)):
+                continue
+            for amp in AMPLITUDES:
+                key = f"{tag_for(T)}_{amp}"
+                if f"{key}_H" not in data.files or f"{key}_B" not in data.files:
+                    raise ValueError(f"{path}: missing keys {key}_H / {key}_B")
+                records.append(clean_record(data[f"{key}_H"], data[f"{key}_B"], T, amp, stride))
+                if not np.ptp(records[-1].B[records[-1].loop_start:]) > 0:
+                    raise ValueError(f"{path}: {key}_B is constant over the loop")
+    return records
+
+
+# --------------------------------------------------------------------------- law families
+
+
+@dataclass(frozen=True)
+class LawFamily:
+    """A parametrized set of temperature laws: fit coordinates, bounds and builder."""
+
+    name: str
+    description: str
+    names: Tuple[str, ...]
+    x0: Tuple[float, ...]
+    lower: Tuple[float, ...]
+    upper: Tuple[float, ...]
+    log: Tuple[bool, ...]
+    build: Callable[[Dict[str, float]], TemperatureLaws]
+
+    def to_z(self, values) -> np.ndarray:
+        v = np.asarray(values, dtype=np.float64)
+        return np.where(self.log, np.log(np.where(self.log, v, 1.0)), v)
+
+    def from_z(self, z) -> Dict[str, float]:
+        z = np.asarray(z, dtype=np.float64)
+        v = np.where(self.log, np.exp(z), z)
+        return dict(zip(self.names, map(float, v)))
+
+    def bounds_z(self):
+        return self.to_z(self.lower), self.to_z(self.upper)
+
+
+def _eq4(p):
+    return TemperatureLaws(a=LinearInT(p["a_ref"], T_REF_K), k=Constant(p["k"]), c=Constant(p["c"]),
+                           Ms=Constant(p["Ms"]), alpha=Constant(0.0))
+
+
+def _eq4_critical_ms(p):
+    return TemperatureLaws(a=LinearInT(p["a_ref"], T_REF_K), k=FollowsMs(p["k0"], p["n_k"]), c=Constant(p["c"]),
+                           Ms=CriticalPowerLaw(p["Ms0"], GD_CURIE_K, p["beta"]), alpha=Constant(0.0))
+
+
+def _critical(p):
+    return TemperatureLaws(a=FollowsMs(p["a0"], p["n_a"]), k=FollowsMs(p["k0"], p["n_k"]), c=Constant(p["c"]),
+                           Ms=CriticalPowerLaw(p["Ms0"], GD_CURIE_K, p["beta"]), alpha=Constant(0.0))
+
+
+def _smooth(p):
+    return TemperatureLaws(a=LogPolynomial((p["la0"], p["la1"], p["la2"]), T_REF_K, 10.0),
+                           k=LogPolynomial((p["lk0"], p["lk1"], p["lk2"]), T_REF_K, 10.0), c=Constant(p["c"]),
+                           Ms=CriticalPowerLaw(p["Ms0"], GD_CURIE_K, p["beta"]), alpha=Constant(0.0))
+
+
+FAMILIES = {
+    "eq4": LawFamily(
+        "eq4", "paper eq. (4): a = a_ref T/T_ref; Ms, k, c constant",
+        ("a_ref", "k", "c", "Ms"), (4000.0, 500.0, 0.3, 1.0e6),
+        (50.0, 5.0, 1e-3, 1e5), (1e5, 2e4, 0.99, 5e6), (True, True, True, True), _eq4),
+    "eq4_critical_ms": LawFamily(
+        "eq4_critical_ms", "a by eq. (4); Ms = Ms0 (1-T/Tc)^beta; k = k0 (Ms/Ms0)^n_k; c constant",
+        ("a_ref", "k0", "n_k", "c", "Ms0", "beta"), (4000.0, 500.0, 0.0, 0.3, 2.0e6, 0.3),
+        (50.0, 5.0, -4.0, 1e-3, 1e5, 0.05), (1e5, 2e4, 4.0, 0.99, 2e7, 1.5),
+        (True, True, False, True, True, False), _eq4_critical_ms),
+    "critical": LawFamily(
+        "critical", "Ms = Ms0 (1-T/Tc)^beta; a = a0 (Ms/Ms0)^n_a; k = k0 (Ms/Ms0)^n_k; c constant",
+        ("a0", "n_a", "k0", "n_k", "c", "Ms0", "beta"), (4000.0, 0.0, 500.0, 0.0, 0.3, 2.0e6, 0.3),
+        (50.0, -4.0, 5.0, -4.0, 1e-3, 1e5, 0.05), (1e5, 4.0, 2e4, 4.0, 0.99, 2e7, 1.5),
+        (True, False, True, False, True, True, False), _critical),
+    "smooth": LawFamily(
+        "smooth", "Ms = Ms0 (1-T/Tc)^beta; log a and log k quadratic in (T - T_ref)/10 K; c constant",
+        ("la0", "la1", "la2", "lk0", "lk1", "lk2", "c", "Ms0", "beta"),
+        (float(np.log(5000.0)), 0.0, 0.0, float(np.log(400.0)), 0.3, 0.0, 0.45, 2.3e6, 0.31),
+        (float(np.log(50.0)), -3.0, -3.0, float(np.log(5.0)), -3.0, -3.0, 1e-3, 1e5, 0.05),
+        (float(np.log(1e5)), 3.0, 3.0, float(np.log(2e4)), 3.0, 3.0, 0.99, 2e7, 1.5),
+        (False, False, False, False, False, False, True, True, False), _smooth),
+}
+
+
+# --------------------------------------------------------------------------- model and fit
+
+
+def parameter_table(family: LawFamily, zs: np.ndarray, temperatures_K: np.ndarray) -> Dict[str, np.ndarray]:
+    """JA parameters, each of shape (len(zs), len(temperatures_K)), for fit coordinates ``zs``."""
+    out = {n: np.empty((len(zs), len(temperatures_K))) for n in ("a", "k", "c", "Ms", "alpha")}
+    for i, z in enumerate(zs):
+        values = family.build(family.from_z(z))(temperatures_K)
+        for n in out:
+            out[n][i] = values[n]
+    return out
+
+
+def simulate_records(records: Sequence[Record], family: LawFamily, zs: np.ndarray) -> List[Optional[np.ndarray]]:
+    """Model B (T) for each record and each row of ``zs``: list of arrays (n_samples, len(zs)).
+
+    A record whose temperature gives invalid parameters (e.g. T >= Tc) yields None.
+    """
+    zs = np.atleast_2d(zs)
+    temps = np.array(sorted({r.temperature_K for r in records}))
+    table = parameter_table(family, zs, temps)
+    out = []
+    for r in records:
+        j = int(np.searchsorted(temps, r.temperature_K))
+        try:
+            batch = HysteresisBatch(*(table[n][:, j] for n in ("a", "k", "alpha", "Ms", "c")), ANHYSTERETIC)
+        except ValueError:
+            out.append(None)
+            continue
+        M = simulate_batch(r.field, batch, r.M0, r.max_field_step)
+        out.append(MU0 * (r.field[:, None] + M))
+    return out
+
+
+def nrmse(record: Record, B_model: np.ndarray) -> float:
+    """RMS(B_model - B_meas)/ptp(B_meas) over the loop part (first positive peak onward)."""
+    meas = record.B[record.loop_start:]
+    return float(np.sqrt(np.mean((B_model[record.loop_start:] - meas) ** 2)) / np.ptp(meas))
+
+
+def _scaled_residuals(records, B_models):
+    parts = []
+    for r, Bm in zip(records, B_models):
+        meas = r.B[r.loop_start:]
+        scale = np.ptp(meas) * np.sqrt(meas.size)
+        parts.append((Bm[r.loop_start:] - meas[:, None]) / scale)
+    return np.concatenate(parts, axis=0)
+
+
+@dataclass(frozen=True)
+class FitResult:
+    family: str
+    params: Dict[str, float]
+    temperatures_C: Tuple[float, ...]
+    cost: float
+    nfev: int
+    seconds: float
+    success: bool
+
+
+def fit_family(records: Sequence[Record], family: LawFamily, x0=None, max_nfev=200) -> FitResult:
+    """Least-squares fit of the family's global parameters to all ``records``."""
+    lo, hi = family.bounds_z()
+    z0 = np.clip(family.to_z(family.x0 if x0 is None else x0), lo + 1e-9, hi - 1e-9)
+    big = 1e3  # residual of a record the model cannot run (bounds should prevent it)
+
+    def fun(z):
+        B = simulate_records(records, family, z[None, :])
+        if any(b is None for b in B):
+            return np.full(sum(r.B.size - r.loop_start for r in records), big)
+        return _scaled_residuals(records, B)[:, 0]
+
+    def jac(z):
+        zs = np.repeat(z[None, :], z.size + 1, axis=0)
+        steps = np.where(zs[0] + FD_STEP <= hi, FD_STEP, -FD_STEP)
+        zs[1:] += np.diag(steps)
+        B = simulate_records(records, family, zs)
+        if any(b is None for b in B):
+            return np.zeros((sum(r.B.size - r.loop_start for r in records), z.size))
+        R = _scaled_residuals(records, B)
+        return (R[:, 1:] - R[:, :1]) / steps
+
+    start = time.perf_counter()
+    sol = least_squares(fun, z0, jac=jac, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_nfev,
+                        xtol=1e-8, ftol=1e-8)
+    seconds = time.perf_counter() - start
+    return FitResult(family.name, family.from_z(sol.x), tuple(sorted({r.temperature_C for r in records})),
+                     float(sol.cost), int(sol.nfev), seconds, bool(sol.success))
+
+
+def score(records: Sequence[Record], family: LawFamily, fit: FitResult, role: str) -> List[dict]:
+    z = family.to_z([fit.params[n] for n in family.names])
+    B = simulate_records(records, family, z[None, :])
+    rows = []
+    for r, Bm in zip(records, B):
+        rows.append({"law": family.name, "temperature_C": r.temperature_C, "amplitude": r.amplitude,
+                     "peak_field": round(r.peak_field, 1),
+                     "nrmse": None if Bm is None else round(nrmse(r, Bm[:, 0]), 5), "role": role,
+                     "asymmetry": round(r.asymmetry, 4)})
+    return rows
+
+
+# --------------------------------------------------------------------------- study
+
+
+def run_study(records: Sequence[Record], families: Sequence[str], holdouts: Sequence[float],
+              predict_records: Sequence[Record] = (), max_nfev=200, floor=True, log=print) -> dict:
+    """Full fit, predictions of ``predict_records`` and leave-one-out per family.
+
+    With ``floor``, the model is also fitted at each temperature alone (five constant
+    parameters, all amplitudes): the floor that no temperature law can beat.
+    """
+    out = {"fits": [], "rows": []}
+    if floor:
+        for T in sorted({r.temperature_C for r in records}):
+            at_T = [r for r in records if r.temperature_C == T]
+            fit = fit_family(at_T, FAMILIES["eq4"], max_nfev=max_nfev)
+            out["fits"].append({**fit.__dict__, "family": "per_temperature", "protocol": f"only{T:+g}"})
+            out["rows"] += [{**row, "law": "per_temperature", "protocol": "all"}
+                            for row in score(at_T, FAMILIES["eq4"], fit, "fitted")]
+        log("per-temperature floor fitted")
+    for name in families:
+        family = FAMILIES[name]
+        full = fit_family(records, family, max_nfev=max_nfev)
+        log(f"[{name}] fit on all {len(full.temperatures_C)} temperatures: {full.seconds:.1f} s, "
+            f"nfev {full.nfev}, params " + ", ".join(f"{k}={v:.4g}" for k, v in full.params.items()))
+        out["fits"].append({**full.__dict__, "protocol": "all"})
+        out["rows"] += [{**row, "protocol": "all"} for row in score(records, family, full, "fitted")]
+        if predict_records:
+            out["rows"] += [{**row, "protocol": "predict_file"}
+                            for row in score(predict_records, family, full, "predicted")]
+        for T in holdouts:
+            train = [r for r in records if r.temperature_C != T]
+            test = [r for r in records if r.temperature_C == T]
+            fit = fit_family(train, family, x0=[full.params[n] for n in family.names], max_nfev=max_nfev)
+            out["fits"].append({**fit.__dict__, "protocol": f"loo{T:+g}"})
+            rows = score(test, family, fit, "predicted")
+            out["rows"] += [{**row, "protocol": "loo"} for row in rows]
+            log(f"[{name}] leave out {T:+g} C: fit {fit.seconds:.1f} s; predicted NRMSE "
+                + ", ".join(f"{r['amplitude']} {100 * r['nrmse']:.2f}%" for r in rows if r["nrmse"] is not None))
+    return out
+
+
+def markdown_table(study: dict, families: Sequence[str]) -> str:
+    rows = study["rows"]
+    temps = sorted({r["temperature_C"] for r in rows if r["protocol"] in ("all", "loo")})
+    lines = ["NRMSE of B (% of ptp B, loop part). `fit`: fitted on all temperatures; "
+             "`LOO`: predicted with that temperature left out of the fit; `per-T floor`: the model "
+             "fitted at that temperature alone (5 constant parameters, all amplitudes).", ""]
+    has_floor = any(r["law"] == "per_temperature" for r in rows)
+    head = ("| T (C) | amplitude | " + ("per-T floor | " if has_floor else "")
+            + " | ".join(f"{f} fit | {f} LOO" for f in families) + " |")
+    lines += [head, "|" + "---|" * (2 + has_floor + 2 * len(families))]
+
+    def cell(f, T, amp, proto):
+        hit = [r for r in rows if r["law"] == f and r["temperature_C"] == T and r["amplitude"] == amp
+               and r["protocol"] == proto]
+        return "-" if not hit or hit[0]["nrmse"] is None else f"{100 * hit[0]['nrmse']:.2f}"
+
+    for T in temps:
+        for amp in AMPLITUDES:
+            lines.append(f"| {T:+g} | {amp} | " + (f"{cell('per_temperature', T, amp, 'all')} | " if has_floor else "")
+                         + " | ".join(
+                f"{cell(f, T, amp, 'all')} | {cell(f, T, amp, 'loo')}" for f in families) + " |")
+    odd = sorted({(r["temperature_C"], r["amplitude"], r["asymmetry"]) for r in rows
+                  if abs(r.get("asymmetry", 0.0)) > 0.03})
+    if odd:
+        lines += ["", "Measured loops that are not point-symmetric, (B(+Hmax) + B(-Hmax))/2 in % of ptp B "
+                  "(the model's loops are symmetric, so this offset is a floor on their NRMSE): "
+                  + ", ".join(f"{T:+g} C {amp} {100 * a:+.1f} %" for T, amp, a in odd)]
+    lines += ["", "Worst leave-one-out NRMSE per amplitude (targets: major <= 2 %, mid and minor <= 8 %):", ""]
+    lines += ["| law | major | mid | minor |", "|---|---|---|---|"]
+    for f in families:
+        worst = []
+        for amp in AMPLITUDES:
+            vals = [r["nrmse"] for r in rows if r["law"] == f and r["amplitude"] == amp and r["protocol"] == "loo"
+                    and r["nrmse"] is not None]
+            worst.append(f"{100 * max(vals):.2f}" if vals else "-")
+        lines.append(f"| {f} | " + " | ".join(worst) + " |")
+    floor_fits = [f for f in study["fits"] if f["family"] == "per_temperature"]
+    if floor_fits:
+        lines += ["", "Per-temperature floor fits: the model's own parameters at each temperature "
+                  "(eq. (4) predicts a constant a/T):", "",
+                  "| T (C) | a (A/m) | a/T (A/m/K) | k (A/m) | c | Ms (A/m) |", "|---|---|---|---|---|---|"]
+        for f in floor_fits:
+            T_C = f["temperatures_C"][0]
+            a = f["params"]["a_ref"] * float(celsius_to_kelvin(T_C)) / T_REF_K
+            lines.append(f"| {T_C:+g} | {a:.0f} | {a / float(celsius_to_kelvin(T_C)):.2f} | {f['params']['k']:.0f} | "
+                         f"{f['params']['c']:.3f} | {f['params']['Ms']:.4g} |")
+    lines += ["", f"Fits (seconds, function evaluations, parameters); whole study "
+              f"{study.get('total_seconds', float('nan')):.1f} s on one CPU core:", ""]
+    for fit in study["fits"]:
+        lines.append(f"- {fit['family']} / {fit['protocol']}: {fit['seconds']:.1f} s, nfev {fit['nfev']}, "
+                     + ", ".join(f"{k}={v:.4g}" for k, v in fit["params"].items()))
+    return "\n".join(lines) + "\n"
+
+
+def make_figure(records, study, families, held_out_T, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 4, figsize=(18, 4.2))
+    test = [r for r in records if r.temperature_C == held_out_T]
+    colors = {"eq4": "tab:red", "eq4_critical_ms": "tab:orange", "critical": "tab:blue", "smooth": "tab:green"}
+    for ax, r in zip(axes[:3], test):
+        ax.plot(r.field[r.loop_start:] / 1e3, r.B[r.loop_start:], "k-", lw=2.5, alpha=0.35, label="measured")
+        for f in families:
+            fit = next(x for x in study["fits"] if x["family"] == f and x["protocol"] == f"loo{held_out_T:+g}")
+            family = FAMILIES[f]
+            z = family.to_z([fit["params"][n] for n in family.names])
+            Bm = simulate_records([r], family, z[None, :])[0]
+            if Bm is not None:
+                ax.plot(r.field[r.loop_start:] / 1e3, Bm[r.loop_start:, 0], "-", lw=1, color=colors.get(f),
+                        label=f"{f} ({100 * nrmse(r, Bm[:, 0]):.1f} %)")
+        ax.set_title(f"{held_out_T:+g} C held out, {r.amplitude}")
+        ax.set_xlabel("H (kA/m)")
+        ax.set_ylabel("B (T)")
+        ax.legend(fontsize=7)
+    ax = axes[3]
+    for f in families:
+        for amp, style in zip(AMPLITUDES, ("o-", "s--", "^:")):
+            pts = sorted((r["temperature_C"], r["nrmse"]) for r in study["rows"]
+                         if r["law"] == f and r["amplitude"] == amp and r["protocol"] == "loo"
+                         and r["nrmse"] is not None)
+            if pts:
+                ax.plot(*zip(*[(t, 100 * v) for t, v in pts]), style, color=colors.get(f), ms=4,
+                        label=f"{f} {amp}")
+    ax.axhline(2, color="k", lw=0.5)
+    ax.axhline(8, color="k", lw=0.5, ls="--")
+    ax.set_yscale("log")
+    ax.set_xlabel("held-out temperature (C)")
+    ax.set_ylabel("predicted NRMSE of B (%)")
+    ax.set_title("leave-one-out prediction")
+    ax.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# --------------------------------------------------------------------------- CLI
+
+
+def build_parser():
+    p = argparse.ArgumentParser(prog="python -m experiments.gd_temperature",
+                                description="Fit temperature laws of the JA model to gadolinium loops.")
+    p.add_argument("--data", default=str(DEFAULT_DATA), help="npz of loops to fit (default: the shipped one)")
+    p.add_argument("--predict", default=None, help="npz of other temperatures to predict from the full fit")
+    p.add_argument("--json", default=None, help="write the per temperature/amplitude rows here")
+    p.add_argument("--quick", action="store_true", help="coarser subsampling, two laws, fewer hold-outs")
+    p.add_argument("--no-artifacts", action="store_true",
+                   help="do not write experiments/results/gd_temperature or docs/figures/gd_temperature")
+    return p
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    stride = 16 if args.quick else 6
+    try:
+        records = load_records(args.data, stride)
+        predict_records = load_records(args.predict, stride) if args.predict else []
+    except ValueError as exc:
+        parser.error(str(exc))
+    temps = sorted({r.temperature_C for r in records})
+    if len(temps) < 3:
+        parser.error(f"--data needs at least 3 temperatures, got {len(temps)}")
+    interior = temps[1:-1]
+    families = ("eq4", "smooth") if args.quick else ("eq4", "eq4_critical_ms", "critical", "smooth")
+    holdouts = interior[::2] if args.quick else interior
+    start = time.perf_counter()
+    study = run_study(records, families, holdouts, predict_records, max_nfev=60 if args.quick else 200)
+    study["total_seconds"] = time.perf_counter() - start
+    study["settings"] = {"stride": stride, "anhysteretic": ANHYSTERETIC, "alpha": 0.0, "Tc_K": GD_CURIE_K,
+                         "T_ref_K": T_REF_K, "score": "NRMSE of B over the loop part (first positive peak on)",
+                         "data": str(args.data), "predict": args.predict, "quick": bool(args.quick)}
+    print(f"total {study['total_seconds']:.1f} s")
+    table = markdown_table(study, families)
+    print(table)
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(study["rows"], indent=1))
+    if not args.no_artifacts:
+        RESULTS_DIR.mkdir(parents=True, exist_ok=True)
+        suffix = "_quick" if args.quick else ""
+        (RESULTS_DIR / f"results{suffix}.json").write_text(json.dumps(study, indent=1, default=float))
+        (RESULTS_DIR / f"results{suffix}.md").write_text(table)
+        held = holdouts[-1] if holdouts else temps[0]  # the held-out temperature nearest Tc
+        if holdouts:
+            make_figure(records, study, families, held, FIGURES_DIR / f"gd_temperature{suffix}.png")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

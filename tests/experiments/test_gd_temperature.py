@@ -1,0 +1,126 @@
+"""Temperature-law fit of experiments/gd_temperature.py: synthetic round trip and CLI errors."""
+
+import numpy as np
+import pytest
+
+from experiments import gd_temperature as gd
+from hyst_gym.physics.hysteresis import simulate_magnetization
+from hyst_gym.physics.temperature_laws import celsius_to_kelvin
+
+MU0 = 4e-7 * np.pi
+TRUE = {"a0": 3000.0, "n_a": -0.5, "k0": 60.0, "n_k": -2.0, "c": 0.4, "Ms0": 2.2e6, "beta": 0.32}
+
+
+def synthetic_record(T_C, amplitude, peak, n=600):
+    """0 -> +peak -> -peak -> +peak with a little sampling noise, B from the true laws."""
+    s = np.linspace(0.0, 1.25, n)
+    H = peak * np.sin(2 * np.pi * s)
+    H = H + np.random.default_rng(int(T_C) + 100).normal(0.0, 2e-3 * peak, n)  # noise, as in the data
+    values = gd.FAMILIES["critical"].build(TRUE)(celsius_to_kelvin(T_C))
+    clean = gd.clean_record(H, np.zeros(n), T_C, amplitude, stride=1)  # the field the model sees
+    M = simulate_magnetization(clean.field, a=float(values["a"]), k=float(values["k"]), alpha=0.0,
+                               Ms=float(values["Ms"]), c=float(values["c"]), anhysteretic=gd.ANHYSTERETIC,
+                               max_field_step=clean.max_field_step)
+    B = MU0 * (clean.field + M)
+    return gd.Record(float(T_C), amplitude, clean.field, B, clean.loop_start, 0.0, clean.peak_field,
+                     clean.max_field_step)
+
+
+@pytest.fixture(scope="module")
+def synthetic():
+    temps = (-30.0, -15.0, -5.0, 10.0)
+    return [synthetic_record(T, amp, peak) for T in temps for amp, peak in (("major", 5.5e4), ("mid", 1e4))]
+
+
+def test_clean_record_is_monotone_between_reversals_and_keeps_them():
+    rng = np.random.default_rng(0)
+    n = 2000
+    H = 400 * np.sin(2 * np.pi * np.linspace(0, 1.25, n)) + rng.normal(0, 8, n)
+    rec = gd.clean_record(H, np.linspace(0, 1, n), -10.0, "minor", stride=7)
+    i_max, i_min = gd.reversal_indices(H)
+    d = np.diff(rec.field)
+    j_max, j_min = rec.loop_start, int(np.argmin(rec.field))
+    assert np.all(d[:j_max] >= 0) and np.all(d[j_max:j_min] <= 0) and np.all(d[j_min:] >= 0)
+    # the reversal samples are kept, with their measured B
+    assert rec.B[j_max] == pytest.approx(np.linspace(0, 1, n)[i_max])
+    assert rec.B[j_min] == pytest.approx(np.linspace(0, 1, n)[i_min])
+    assert rec.field.size < n / 6
+    assert gd.tag_for(-38) == "m38C" and gd.tag_for(5) == "p05C" and gd.tag_for(0) == "p00C"
+
+
+def test_round_trip_recovers_laws_and_predicts_held_out_temperature(synthetic):
+    family = gd.FAMILIES["critical"]
+    train = [r for r in synthetic if r.temperature_C != -5.0]
+    test = [r for r in synthetic if r.temperature_C == -5.0]
+    start = {"a0": 4500.0, "n_a": 0.0, "k0": 150.0, "n_k": -1.0, "c": 0.25, "Ms0": 1.8e6, "beta": 0.4}
+    fit = gd.fit_family(train, family, x0=[start[n] for n in family.names], max_nfev=150)
+    # the starting point is visibly wrong ...
+    start_rows = gd.score(test, family, gd.FitResult("critical", start, (), 0, 0, 0, True), "predicted")
+    assert max(r["nrmse"] for r in start_rows) > 0.05
+    # ... the fit recovers the true laws ...
+    for name in ("a0", "k0", "c", "Ms0"):
+        assert fit.params[name] == pytest.approx(TRUE[name], rel=0.05), name
+    for name in ("n_a", "n_k", "beta"):
+        assert fit.params[name] == pytest.approx(TRUE[name], abs=0.05), name
+    # ... and predicts the held-out temperature
+    rows = gd.score(test, family, fit, "predicted")
+    assert len(rows) == 2 and all(r["role"] == "predicted" for r in rows)
+    assert max(r["nrmse"] for r in rows) < 0.005
+
+
+def test_eq4_cannot_follow_the_critical_drop_of_ms(synthetic):
+    """The paper's law (constant Ms) misses loops whose Ms follows the critical law."""
+    fit = gd.fit_family(synthetic, gd.FAMILIES["eq4"], max_nfev=60)
+    rows = gd.score(synthetic, gd.FAMILIES["eq4"], fit, "fitted")
+    assert max(r["nrmse"] for r in rows if r["amplitude"] == "major") > 0.03
+
+
+def test_cli_rejects_missing_and_bad_files(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        gd.main(["--data", str(tmp_path / "missing.npz"), "--no-artifacts"])
+    assert exc.value.code == 2
+    assert "no such file" in capsys.readouterr().err
+    bad = tmp_path / "bad.npz"
+    bad.write_text("not an npz")
+    with pytest.raises(SystemExit) as exc:
+        gd.main(["--data", str(bad), "--no-artifacts"])
+    assert exc.value.code == 2
+    keys = tmp_path / "keys.npz"
+    np.savez(keys, temperatures_C=np.array([-10.0, 0.0, 5.0]))
+    with pytest.raises(SystemExit) as exc:
+        gd.main(["--data", str(keys), "--no-artifacts"])
+    assert exc.value.code == 2
+    assert "m10C_major" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        gd.main(["--predict", str(tmp_path / "missing.npz"), "--no-artifacts"])
+    assert exc.value.code == 2
+
+
+def test_cli_runs_on_a_small_file_and_writes_rows(synthetic, tmp_path):
+    payload = {"temperatures_C": np.array([-30.0, -15.0, -5.0])}
+    for T in (-30.0, -15.0, -5.0):
+        for amp, peak in (("major", 5.5e4), ("mid", 1e4), ("minor", 400.0)):
+            n = 400
+            H = peak * np.sin(2 * np.pi * np.linspace(0, 1.25, n))
+            rec = synthetic_record(T, amp, peak, n)
+            payload[f"{gd.tag_for(T)}_{amp}_H"] = H
+            payload[f"{gd.tag_for(T)}_{amp}_B"] = np.interp(np.arange(n), np.arange(n), rec.B)
+    data = tmp_path / "small.npz"
+    np.savez(data, **payload)
+    out = tmp_path / "rows.json"
+    other = tmp_path / "other.npz"
+    np.savez(other, temperatures_C=np.array([10.0]),
+             **{f"p10C_{amp}_{q}": payload[f"m15C_{amp}_{q}"] for amp in gd.AMPLITUDES for q in "HB"})
+    assert gd.main(["--data", str(data), "--predict", str(other), "--json", str(out), "--quick",
+                    "--no-artifacts"]) == 0
+    import json
+
+    rows = json.loads(out.read_text())
+    assert {r["role"] for r in rows} == {"fitted", "predicted"}
+    from_file = [r for r in rows if r["protocol"] == "predict_file"]
+    assert {r["temperature_C"] for r in from_file} == {10.0} and len(from_file) == 3 * 2  # two laws in --quick
+    rows = [r for r in rows if r["protocol"] != "predict_file"]
+    assert {r["amplitude"] for r in rows} == {"major", "mid", "minor"}
+    predicted = [r for r in rows if r["role"] == "predicted"]
+    assert {r["temperature_C"] for r in predicted} == {-15.0}
+    assert all(set(r) >= {"temperature_C", "amplitude", "peak_field", "nrmse", "role"} for r in rows)
