@@ -276,6 +276,8 @@ def main(argv=None):
     parser.add_argument("--channels", nargs="+", default=list(CHANNEL_SETS), choices=CHANNEL_SETS,
                         help="which channel sets (default all three)")
     parser.add_argument("--rerun", action="store_true", help="drop the stored rows of the selected cases first")
+    parser.add_argument("--readme", type=Path, help="also write the summary and reliability tables into this "
+                        "file's <!-- section:concealed-study --> block (e.g. README.md)")
     args = parser.parse_args(argv)
     if args.seeds < 1 or args.jobs < 1 or args.samples < 400:
         parser.error("--seeds and --jobs must be >= 1 and --samples >= 400")
@@ -301,7 +303,14 @@ def main(argv=None):
                 rows.append({k: str(v) for k, v in row.items()})
     summary = summarize(rows)
     write_outputs(summary, rows)
-    print(markdown(summary).split("\n## ")[0])
+    text = markdown(summary)
+    if args.readme is not None:
+        from experiments.report_markdown import update_readme
+
+        sections = text.split("\n## ")
+        body = sections[0].split("\n", 2)[2] + "\n#### " + sections[-1]  # summary table + reliability table
+        update_readme(args.readme, body, area="concealed-study")
+    print(text.split("\n## ")[0])
 
 
 if __name__ == "__main__":

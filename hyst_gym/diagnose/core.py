@@ -339,11 +339,10 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
     for candidate in candidates:
         if candidate.accepted:
             candidate.plausibility = check_plausibility(candidate, weights)
-    decision = decide(candidates, base_heldout, recording.channels)
-    notes = decision.notes + _prior_notes(base)
+    prior_notes = _prior_notes(base)
+    decision = decide(candidates, base_heldout, recording.channels, mechanics_pinned=bool(prior_notes))
+    notes = decision.notes + prior_notes
     verdict = decision.verdict
-    if verdict == "none" and len(notes) > len(decision.notes):
-        verdict = "unexplained"  # the base model fits only by leaving its stated mechanics
     bar.update(1)
     bar.close()
 

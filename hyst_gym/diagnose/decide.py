@@ -25,14 +25,22 @@ Verdicts:
   no plausible candidate explains most of it; the report says where the residual lives;
 * ``none`` -- the base model predicts the held-out block to within noise.
 
-``confidence`` (0-1) is the margin of the verdict over its nearest alternative, as a share
-of the held-out reduction: for a single effect, ``1 - reduction(runner-up)/reduction(winner)``
-(0: the runner-up does as well, 1: no other candidate helps at all); for ``ambiguous``, the
-same margin of the weakest listed candidate over the best unlisted one; for ``none``,
-``1 - best improvement / ACCEPT_IMPROVEMENT``; for ``unexplained``,
-``1 - UNEXPLAINED_RMSE / base RMSE``. It is an observed margin, not a probability; its
-calibration (how often verdicts at each confidence are right) is measured in
-``experiments/diagnose_concealed.py`` and reported in its reliability table.
+``confidence`` (0-1) is the verdict's margin over the nearest *other* verdict it could have
+been, each margin scaled to 0 at the bar that separates the two and 1 far from it:
+
+* a single effect: the smaller of ``1 - reduction(runner-up)/reduction(winner)`` (margin over
+  another effect) and how far the winner is past the bar for naming (halving the held-out
+  RMSE, or reaching ``EXPLAINED_RMSE``; margin over ``unexplained``);
+* ``ambiguous``: the same two margins, for the weakest listed effect against the best
+  unlisted one;
+* ``unexplained``: the smaller of how far the best candidate (rejected ones included) stays
+  below the naming bar and how far the base model misses beyond ``UNEXPLAINED_RMSE``;
+* ``none``: the smaller of how far the best candidate stays below ``ACCEPT_IMPROVEMENT`` and
+  how far the base model is inside ``UNEXPLAINED_RMSE``; 0.5 when the base model explains the
+  record only with its mechanics pinned at their prior (the verdict is then ``unexplained``).
+
+It is a margin, not a probability; how often verdicts at each confidence are right is
+measured in ``experiments/diagnose_concealed.py`` (its reliability table).
 """
 
 from __future__ import annotations
@@ -48,8 +56,9 @@ from .model import EFFECT_PARAMETERS, Model
 ACCEPT_IMPROVEMENT = 0.20
 ACCEPT_DELTA_BIC = 10.0
 UNEXPLAINED_RMSE = 1.5
-#: A named effect must bring the held-out RMSE within this many noise units, or halve it.
+#: A named effect must bring the held-out RMSE within this many noise units, or lower it by this share.
 EXPLAINED_RMSE = 2.0
+NAMING_IMPROVEMENT = 0.5
 #: Another plausible candidate reaching this share of the winner's held-out reduction ties with it.
 TIE_SHARE = 0.85
 #: Independent time blocks for the consistency check.
@@ -172,36 +181,57 @@ def reduction(candidate, base_heldout):
     return base_heldout - candidate.heldout_rmse
 
 
-def decide(candidates, base_heldout, channels) -> Decision:
-    """The verdict from fitted, accepted and plausibility-checked candidates (module docstring)."""
+def naming_margin(candidate) -> float:
+    """How far a candidate is past the bar for being named (0 at the bar, 1 far past it): it
+    halves the base model's held-out RMSE, or brings it within ``EXPLAINED_RMSE`` noise units."""
+    by_share = (candidate.improvement - NAMING_IMPROVEMENT) / NAMING_IMPROVEMENT
+    by_level = (EXPLAINED_RMSE - candidate.heldout_rmse) / (EXPLAINED_RMSE - 1.0)
+    return float(np.clip(max(by_share, by_level), 0.0, 1.0))
+
+
+def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False) -> Decision:
+    """The verdict from fitted, accepted and plausibility-checked candidates (module docstring).
+
+    ``mechanics_pinned``: the base model's mechanics ran into their prior; a base model that
+    then explains the record is not trusted to mean ``none``."""
     plausible = sorted([c for c in candidates if c.accepted and c.plausibility.plausible],
                        key=lambda c: c.heldout_rmse)
     rejected = [c for c in candidates if c.accepted and not c.plausibility.plausible]
     notes = [f"{c.effect} fitted better ({100 * c.improvement:.0f} % held-out) but was not named: "
              f"{'; '.join(c.plausibility.reasons)}" for c in rejected]
+    best_improvement = max([c.improvement for c in candidates] + [0.0])
     if plausible:
         best = plausible[0]
         best_reduction = reduction(best, base_heldout)
         tied = [c for c in plausible if reduction(c, base_heldout) >= TIE_SHARE * best_reduction]
-        others = [c for c in candidates if c not in tied]
+        others = [c for c in candidates if all(c is not t for t in tied)]  # identity: fits hold arrays
         runner = max([reduction(c, base_heldout) for c in others] + [0.0])
-        explained = best.heldout_rmse <= EXPLAINED_RMSE or best.heldout_rmse <= 0.5 * base_heldout
-        if not explained:
+        if naming_margin(best) == 0.0 and best.heldout_rmse > EXPLAINED_RMSE:
             notes.append(f"{best.effect} explains part of the mismatch ({100 * best.improvement:.0f} % lower "
                          f"held-out RMSE) but leaves {best.heldout_rmse:.2f} noise units")
-            return Decision("unexplained", float(np.clip(1.0 - EXPLAINED_RMSE / best.heldout_rmse, 0.0, 1.0)),
-                            notes=notes)
+            # margin to the nearest alternative: naming that effect after all
+            confidence = (NAMING_IMPROVEMENT - best.improvement) / NAMING_IMPROVEMENT
+            return Decision("unexplained", float(np.clip(confidence, 0.0, 1.0)), notes=notes)
         weakest = min(reduction(c, base_heldout) for c in tied)
-        confidence = float(np.clip(1.0 - max(runner, 0.0) / weakest, 0.0, 1.0))
+        # margins to both alternatives: another effect (the runner-up), and 'unexplained'
+        confidence = float(np.clip(min(1.0 - max(runner, 0.0) / weakest, min(naming_margin(c) for c in tied)),
+                                   0.0, 1.0))
         if len(tied) == 1:
             return Decision(best.effect, confidence, chosen=best, tied=tied, notes=notes)
         effects = [c.effect for c in tied]
         return Decision("ambiguous", confidence, chosen=best, tied=tied,
                         advice=separating_measurement(channels, effects), notes=notes)
-    best_improvement = max([c.improvement for c in candidates] + [0.0])
     if base_heldout > UNEXPLAINED_RMSE:
-        return Decision("unexplained", float(np.clip(1.0 - UNEXPLAINED_RMSE / base_heldout, 0.0, 1.0)), notes=notes)
-    return Decision("none", float(np.clip(1.0 - best_improvement / ACCEPT_IMPROVEMENT, 0.0, 1.0)), notes=notes)
+        # margins to naming the best candidate (rejected ones included) and to 'none'
+        confidence = min(1.0 - best_improvement / NAMING_IMPROVEMENT, 1.0 - UNEXPLAINED_RMSE / base_heldout)
+        return Decision("unexplained", float(np.clip(confidence, 0.0, 1.0)), notes=notes)
+    # margins to accepting the best candidate and to 'unexplained'
+    confidence = min(1.0 - best_improvement / ACCEPT_IMPROVEMENT,
+                     (UNEXPLAINED_RMSE - base_heldout) / (UNEXPLAINED_RMSE - 1.0))
+    if mechanics_pinned:
+        # the data alone would say 'none'; the stated mechanics say otherwise: an even call
+        return Decision("unexplained", 0.5, notes=notes)
+    return Decision("none", float(np.clip(confidence, 0.0, 1.0)), notes=notes)
 
 
 __all__ = ["ACCEPT_DELTA_BIC", "ACCEPT_IMPROVEMENT", "Decision", "EXPLAINED_RMSE", "Plausibility",
