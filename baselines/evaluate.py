@@ -66,8 +66,8 @@ def _check_policy_fits(agent: PolicyAgent, spec, label: str, path: str) -> None:
 
 
 def main(args) -> int:
-    from experiments.stats import iqm
-    from experiments.survival import censor
+    from baselines.stats import iqm
+    from baselines.survival import censor
 
     if args.episodes <= 0:
         raise ValueError(f"--episodes must be > 0, got {args.episodes}")

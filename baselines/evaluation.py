@@ -108,7 +108,7 @@ def _pe_conditions(integrand, curvature, dt):
 
 
 def episode_metrics(seed, time, a_estimate, a_true, pe_a, pe_b, dt, band_fraction=1e-3) -> dict:
-    from experiments.survival import settle_time
+    from baselines.survival import settle_time
 
     error = a_estimate - a_true
     return {

@@ -209,8 +209,8 @@ class _Callbacks:
 
 def record_learning_point(model, out, spec, n_stack, episodes, wall_start=None):
     """Append one learning-curve row (validation IQM of the convergence metrics)."""
-    from experiments.stats import iqm
-    from experiments.survival import censor
+    from baselines.stats import iqm
+    from baselines.survival import censor
 
     from .evaluation import run_episodes
 

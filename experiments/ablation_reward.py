@@ -85,7 +85,7 @@ def train_and_evaluate(arm: str, seed: int, timesteps: int, raw: str) -> dict:
 
 
 def _read_metric(arm, metric, raw=RAW, censored=True):
-    from experiments.survival import censor
+    from baselines.survival import censor
 
     rows = []
     for path in sorted((raw / "eval" / arm).glob("run*.csv")):
@@ -101,7 +101,7 @@ def _read_metric(arm, metric, raw=RAW, censored=True):
 def summarize(raw=RAW, budget=None) -> dict:
     """Summary of the raw CSVs: per arm and metric ``{"iqm", "ci95", "n", "runs"}``, the
     success rate, and P(arm better than dense) with its interval for the other arms."""
-    from experiments.stats import probability_of_improvement, probability_of_improvement_ci, summarize as stat
+    from baselines.stats import probability_of_improvement, probability_of_improvement_ci, summarize as stat
 
     out = {"scenario": SCENARIO, "config": CONFIG, "arms": {}, "probability_of_improvement": {}}
     scores = {}

@@ -129,8 +129,8 @@ def benchmark_stage(out: pathlib.Path, episodes: int, train_ppo: bool, ppo_steps
 
     from baselines.evaluation import run_episodes
     from baselines.scenarios import HELDOUT_SEEDS, SCENARIOS
-    from experiments.stats import summarize
-    from experiments.survival import censor, kaplan_meier
+    from baselines.stats import summarize
+    from baselines.survival import censor, kaplan_meier
 
     if episodes <= 0:
         raise ValueError(f"--episodes must be > 0, got {episodes}")

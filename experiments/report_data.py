@@ -16,8 +16,8 @@ from collections import defaultdict
 
 import numpy as np
 
-from .stats import probability_of_improvement, probability_of_improvement_ci, summarize
-from .survival import censor
+from baselines.stats import probability_of_improvement, probability_of_improvement_ci, summarize
+from baselines.survival import censor
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEFAULT_RESULTS = ROOT / "experiments" / "results"

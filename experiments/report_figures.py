@@ -7,7 +7,7 @@ import csv
 import numpy as np
 
 from .report_data import RL_MAIN, episode_length_s, is_rl_agent
-from .survival import censor, kaplan_meier
+from baselines.survival import censor, kaplan_meier
 
 
 def _plt():

@@ -114,14 +114,14 @@ def _scenario(job):
 
 
 def _censored_settle(records, scenario):
-    from experiments.survival import censor
+    from baselines.survival import censor
 
     return censor([r["settle_time_s"] for r in records], scenario.episode_s)[0]
 
 
 def _score(records, scenario):
     """Tuning criterion: IQM settle time (censored) in fixed-a scenarios, IQM RMS error in drift."""
-    from experiments.stats import iqm
+    from baselines.stats import iqm
 
     if scenario.name == "drift":
         return iqm([r["rms_error"] for r in records])

@@ -112,8 +112,8 @@ def paper_floor(raw, rl_seeds, progress):
     from baselines.evaluation import run_episodes
     from baselines.scenarios import HELDOUT_SEEDS, SCENARIOS
     from hyst_gym.estimation.convergence import first_passage, sensitivity_along
-    from experiments.stats import summarize
-    from experiments.survival import censor
+    from baselines.stats import summarize
+    from baselines.survival import censor
 
     scenario = SCENARIOS["paper"]
     config = estimator_of(scenario)
@@ -151,7 +151,7 @@ def drift_floor(raw, rl_seeds, progress):
     from baselines.agents import ConstantAgent
     from baselines.evaluation import run_episodes
     from baselines.scenarios import HELDOUT_SEEDS, SCENARIOS
-    from experiments.stats import summarize
+    from baselines.stats import summarize
 
     scenario = SCENARIOS["drift"]
     config = estimator_of(scenario)

@@ -282,11 +282,13 @@ def test_without_the_rl_extra_help_works_and_running_says_what_is_missing(tmp_pa
     assert not (tmp_path / "demo").exists()
 
 
-def test_a_user_experiments_package_does_not_shadow_the_benchmark(tmp_path):
+@pytest.mark.parametrize("package", ["baselines", "experiments"])
+def test_a_user_package_does_not_shadow_the_benchmark(tmp_path, package):
+    # evaluate reads the IQM from baselines.stats; a same-named user package earlier on the path must not win
     project = tmp_path / "project"
-    (project / "experiments").mkdir(parents=True)
-    (project / "experiments" / "__init__.py").write_text("")
-    (project / "experiments" / "stats.py").write_text("def iqm(values):\n    raise RuntimeError('user iqm')\n")
+    (project / package).mkdir(parents=True)
+    (project / package / "__init__.py").write_text("")
+    (project / package / "stats.py").write_text("def iqm(values):\n    raise RuntimeError('user iqm')\n")
     status, out, errors = run_command(["evaluate", "--help"], cwd=project, pythonpath=project)
     assert status == 0 and "--agent" in out and not errors
     status, out, errors = run_command(EVALUATE + ["--out", project / "eval"], cwd=project, pythonpath=project)

@@ -25,6 +25,8 @@ from .identifiability import RATE_EFFECTS, channel_set, invisible_effects
 from .model import (EFFECT_PARAMETERS, MECHANICS_TOLERANCE, Model, Structure, applicable_effects,
                     base_parameters, extension_parameters, noise_level, slope_factor)
 from .recording import Recording, read_recording
+# physical_params lives in report (which explain needs); core re-exports it for its callers
+from .report import explain, physical_params
 
 HYSTERESIS_NAMES = ["a", "k", "rho", "Ms", "c"]
 #: Base-model parameters that carry a prior (nominal x/÷ tolerance); one at its bound means the
@@ -98,15 +100,6 @@ class Report:
             "split": {"fit_samples": self.split_index, "heldout_from_time_s": None},
             "seconds": self.seconds,
         }
-
-
-def physical_params(fit: FitResult) -> dict:
-    """Fitted values in physical units, with alpha recovered from the fitted feedback rho."""
-    values = dict(fit.values)
-    curve = fit.model.structure.curve
-    values["alpha"] = values["rho"] * values["a"] / (values["Ms"] * slope_factor(curve))
-    values["anhysteretic"] = curve
-    return values
 
 
 def _split(n, holdout):
@@ -356,7 +349,6 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
                     split_index=cut, noise=weights, seconds=0.0, chosen=chosen,
                     heldout_by_channel=heldout_by_channel, tied=decision.tied, advice=decision.advice,
                     notes=notes, skipped=skipped)
-    from .report import explain
     report.explanation = explain(report)
     report.seconds = _time.perf_counter() - started
     return report

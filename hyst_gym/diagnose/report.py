@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .model import EFFECT_PARAMETERS
+from .fit import FitResult
+from .model import EFFECT_PARAMETERS, slope_factor
 
 EFFECT_WORDS = {
     "thermal_drift": "thermal drift: the material heats up during the record and its anhysteretic parameter a "
@@ -24,6 +25,15 @@ EFFECT_WORDS = {
 UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "tau_th": "s", "beta_Ms": "1/K", "tau_m": "s", "tau_x": "s",
          "zeta_q": "m/s^2 per (A/m)^2", "f2": "Hz", "damping2": "", "g2": "", "delta_e": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "",
          "alpha": ""}
+
+
+def physical_params(fit: FitResult) -> dict:
+    """Fitted values in physical units, with alpha recovered from the fitted feedback rho."""
+    values = dict(fit.values)
+    curve = fit.model.structure.curve
+    values["alpha"] = values["rho"] * values["a"] / (values["Ms"] * slope_factor(curve))
+    values["anhysteretic"] = curve
+    return values
 
 
 def _fmt(name, values, sigmas):
@@ -72,7 +82,6 @@ def _verdict_words(report) -> str:
     fit = chosen.fit
     names = EFFECT_PARAMETERS[chosen.effect] or ("a", "k", "alpha", "Ms", "c")
     values = dict(fit.values)
-    from .core import physical_params
     values.update(physical_params(fit))
     params = ", ".join(_fmt(n, values, fit.uncertainties) for n in names if fit.model.parameters.get(n) is None
                        or fit.model.parameters[n].free or n == "alpha")

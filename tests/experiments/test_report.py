@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from experiments import report
-from experiments.stats import iqm
+from baselines.stats import iqm
 
 
 def _write_runs(raw, scenario, agent, runs, rng, settle_scale, episode_s=6.0, tracking=False):

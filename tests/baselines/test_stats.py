@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from experiments.stats import (iqm, probability_of_improvement, probability_of_improvement_ci,
+from baselines.stats import (iqm, probability_of_improvement, probability_of_improvement_ci,
                                stratified_bootstrap_ci, summarize)
-from experiments.survival import censor, kaplan_meier, settle_time
+from baselines.survival import censor, kaplan_meier, settle_time
 
 
 def test_iqm_is_mean_of_middle_half():
