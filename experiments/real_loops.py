@@ -15,12 +15,17 @@ on the first half and holding out the second half, and again on a re-sampled cop
 (``data/real/gd-temperature``) are played in order of temperature, -38 to +15 C, with the
 temperature left out: a real record whose concealed effect (warming) is known.
 
-    .venv/bin/python experiments/real_loops.py
+    .venv/bin/python experiments/real_loops.py                       # the full study, shipped data
+    .venv/bin/python experiments/real_loops.py --data DIR --json S.json   # score your own loops
+
+The variant (anhysteretic curve) is chosen on a held-out segment of the fitted loop, never
+on the fitted samples or on the other amplitudes.
 """
 
 from __future__ import annotations
 
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -40,12 +45,34 @@ MATERIALS = {"MnZn_ferrite": "MnZn ferrite", "MnZn_HP_ferrite": "MnZn HP ferrite
 DT = 1e-3  # s per sample, quasi-static
 
 
-def load_loops(stem):
-    B = scipy.io.loadmat(DATA / f"B_{stem}.mat")
-    H = scipy.io.loadmat(DATA / f"H_{stem}.mat")
-    B = next(v for k, v in B.items() if not k.startswith("__"))
-    H = next(v for k, v in H.items() if not k.startswith("__"))
-    return [(np.asarray(H[:, j], float), np.asarray(B[:, j], float)) for j in range(B.shape[1])]
+def find_materials(folder: Path) -> dict:
+    """``{stem: name}`` for every ``B_<stem>.mat`` with an ``H_<stem>.mat`` beside it."""
+    if not folder.is_dir():
+        raise ValueError(f"--data {folder}: not a folder")
+    stems = sorted(p.stem[2:] for p in folder.glob("B_*.mat") if (folder / f"H_{p.stem[2:]}.mat").exists())
+    if not stems:
+        raise ValueError(f"--data {folder}: no B_<name>.mat / H_<name>.mat pairs")
+    return {stem: MATERIALS.get(stem, stem.replace("_", " ")) for stem in stems}
+
+
+def load_loops(stem, folder=DATA):
+    """The loops of one material: a list of (H in A/m, B in T), one per matrix column."""
+    matrices = []
+    for prefix in ("B", "H"):
+        path = folder / f"{prefix}_{stem}.mat"
+        try:
+            content = scipy.io.loadmat(path)
+        except Exception as error:  # scipy raises several types for a bad file
+            raise ValueError(f"{path}: not a readable .mat file ({error})") from None
+        arrays = [v for k, v in content.items() if not k.startswith("__")]
+        if len(arrays) != 1 or np.ndim(arrays[0]) != 2:
+            raise ValueError(f"{path}: expected one 2-D matrix (one loop per column)")
+        matrices.append(np.asarray(arrays[0], dtype=float))
+    B, H = matrices
+    if B.shape != H.shape or not np.all(np.isfinite(B)) or not np.all(np.isfinite(H)):
+        raise ValueError(f"{folder}/B_{stem}.mat and H_{stem}.mat: shapes {B.shape} and "
+                         f"{H.shape} differ or hold non-finite values")
+    return [(H[:, j], B[:, j]) for j in range(B.shape[1])]
 
 
 def loop_recording(loops, source):
@@ -107,21 +134,35 @@ def nrmse_of_b(recording, predicted_m, start, stop):
     return float(np.sqrt(np.mean((b_model - b_meas) ** 2)) / np.ptp(b_meas))
 
 
-def holdout_study(stem):
-    loops = load_loops(stem)
+#: Share of the fitted loop's scored cycle held out to choose the variant (one contiguous segment
+#: around the positive tip), never the score on the fitted samples or on the other amplitudes.
+SELECTION_SEGMENT = (0.15, 0.40)
+
+
+def holdout_study(stem, folder=DATA, materials=MATERIALS):
+    loops = load_loops(stem, folder)
     order = np.argsort([-np.max(np.abs(h)) for h, _ in loops])
     fitted = loops[order[0]]
     rec = loop_recording([fitted], f"{stem} largest loop")
     n = fitted[0].size
-    mask = np.zeros(rec.size, bool); mask[n:] = True
+    scored = np.zeros(rec.size, bool); scored[n:] = True
+    segment = np.zeros(rec.size, bool)
+    segment[n + int(SELECTION_SEGMENT[0] * n):n + int(SELECTION_SEGMENT[1] * n)] = True
     weights = {"magnetization": noise_level(rec.magnetization)}
     results = []
     for curve in ("langevin", "ising"):
         started = time.perf_counter()
-        fit = calibrate(rec, Structure("none", curve), weights, mask, float(np.ptp(rec.field)) / 2000)
+        fit = calibrate(rec, Structure("none", curve), weights, scored & ~segment, float(np.ptp(rec.field)) / 2000)
         seconds = time.perf_counter() - started
-        row = {"material": MATERIALS[stem], "curve": curve, "fit_seconds": seconds,
-               "params": {k: v for k, v in physical_params(fit).items() if k in ("a", "k", "alpha", "Ms", "c")}}
+        m = fit.model.magnetization([fit.values])[:, 0]
+        segment_error = float(np.sqrt(np.mean((m[segment] - rec.magnetization[segment]) ** 2)))
+        row = {"material": materials[stem], "curve": curve, "fit_seconds": seconds,
+               "selection_segment_rmse_A_per_m": segment_error,
+               "params": {k: v for k, v in physical_params(fit).items() if k in ("a", "k", "alpha", "Ms", "c")},
+               "uncertainties": {k: v for k, v in fit.uncertainties.items() if k in ("a", "k", "rho", "Ms", "c")},
+               "at_bound": [name for name, p in fit.model.parameters.items() if p.free and
+                            min(abs(fit.values[name] - p.lower), abs(p.upper - fit.values[name]))
+                            < 1e-3 * (p.upper - p.lower)]}
         scores = {}
         for j in order:
             H, B = loops[j]
@@ -132,7 +173,8 @@ def holdout_study(stem):
             scores[f"{np.max(np.abs(H)):.3g} A/m"] = nrmse_of_b(other, m, H.size, 2 * H.size)
         row["nrmse_B"] = scores
         results.append(row)
-    best = min(results, key=lambda r: list(r["nrmse_B"].values())[0])
+    # the variant is chosen on the held-out segment of the fitted loop
+    best = min(results, key=lambda r: r["selection_segment_rmse_A_per_m"])
     return results, best, loops, order
 
 
@@ -163,7 +205,48 @@ def plot_holdout(stem, best, loops, order):
     plt.close(fig)
 
 
-def main():
+def scores_json(stem, results, best):
+    """The per-material entry of ``--json``: fitted loop, other amplitudes, time, chosen variant."""
+    scores = list(best["nrmse_B"].items())
+    return {"variant": best["curve"], "chosen_by": "held-out segment of the fitted loop",
+            "fitted_loop_nrmse": scores[0][1],
+            "loops": [{"peak_field": float(name.split()[0]), "nrmse": value} for name, value in scores],
+            "fit_seconds": best["fit_seconds"], "params": best["params"], "uncertainties": best["uncertainties"],
+            "at_bound": best["at_bound"],
+            "variants": {r["curve"]: {"selection_segment_rmse_A_per_m": r["selection_segment_rmse_A_per_m"],
+                                      "nrmse_B": r["nrmse_B"]} for r in results}}
+
+
+def score_folder(folder: Path, json_path: Path) -> int:
+    """``--data DIR --json FILE``: the amplitude hold-out on any folder of loop pairs."""
+    materials = find_materials(folder)
+    out = {}
+    for stem in materials:
+        results, best, _, _ = holdout_study(stem, folder, materials)
+        out[materials[stem]] = scores_json(stem, results, best)
+        print(f"{materials[stem]}: {best['curve']}, fitted loop {100 * out[materials[stem]]['fitted_loop_nrmse']:.1f} %, "
+              + ", ".join(f"{l['peak_field']:g} A/m {100 * l['nrmse']:.1f} %" for l in out[materials[stem]]['loops'][1:]))
+    json_path.parent.mkdir(parents=True, exist_ok=True)
+    json_path.write_text(json.dumps(out, indent=2, default=float) + "\n")
+    print(f"wrote {json_path}")
+    return 0
+
+
+def main(argv=None):
+    import argparse
+
+    parser = argparse.ArgumentParser(description="Amplitude hold-out and blind diagnosis on measured B-H loops.")
+    parser.add_argument("--data", type=Path, help="folder of B_<name>.mat / H_<name>.mat pairs (one loop per "
+                        "column); with --json, score only these (default: the shipped MnZn loops, full study)")
+    parser.add_argument("--json", type=Path, help="write per-material scores here (fitted_loop_nrmse, loops, "
+                        "fit_seconds, variant)")
+    args = parser.parse_args(argv)
+    if args.data is not None or args.json is not None:
+        try:
+            return score_folder(args.data or DATA, args.json or Path("real_loops_scores.json"))
+        except (ValueError, OSError) as error:  # bad input: one line, exit status 2
+            print(f"real_loops: error: {error}", file=sys.stderr)
+            return 2
     RESULTS.mkdir(parents=True, exist_ok=True)
     summary = {}
     for stem in MATERIALS:
@@ -173,7 +256,7 @@ def main():
         stability, report = stability_checks(rec, anhysteretic=best["curve"], holdout=0.5)
         write_json(report, RESULTS / f"real_{stem}_report.json")
         write_plots(report, FIGURES / f"real_{stem}")
-        summary[stem] = {"holdout": results, "diagnose": {"verdict": report.verdict, "confidence": report.confidence,
+        summary[stem] = {"scores": scores_json(stem, results, best), "holdout": results, "diagnose": {"verdict": report.verdict, "confidence": report.confidence,
                                                           "baseline_heldout": report.baseline_heldout,
                                                           "improvement": report.improvement,
                                                           "explanation": report.explanation,
@@ -189,7 +272,29 @@ def main():
                                                    "explanation": report.explanation}
     print(json.dumps(summary["gadolinium_temperature_concealed"], indent=1, default=float))
     (RESULTS / "real_loops.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
+    from experiments.report_markdown import update_readme
+
+    update_readme(Path(__file__).resolve().parents[1] / "README.md", loops_table(summary), area="real-loops-table")
+    return 0
+
+
+def loops_table(summary) -> str:
+    """Markdown table of the amplitude hold-out, both variants, the chosen one in bold."""
+    lines = ["| material | curve | selection segment RMSE (A/m) | fitted loop | other amplitudes (A/m) | fit time |"
+             " at a bound |", "|---|---|---|---|---|---|---|"]
+    for stem, entry in summary.items():
+        if "holdout" not in entry:
+            continue
+        chosen = entry["scores"]["variant"]
+        for row in entry["holdout"]:
+            scores = list(row["nrmse_B"].items())
+            curve = f"**{row['curve']}**" if row["curve"] == chosen else row["curve"]
+            others = ", ".join(f"{100 * v:.1f} % ({k.split()[0]})" for k, v in scores[1:])
+            lines.append(f"| {row['material']} | {curve} | {row['selection_segment_rmse_A_per_m']:.3g} | "
+                         f"{100 * scores[0][1]:.1f} % | {others} | {row['fit_seconds']:.1f} s | "
+                         f"{', '.join(row['at_bound']) or '–'} |")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

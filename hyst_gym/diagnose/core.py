@@ -126,13 +126,15 @@ def calibrate(recording: Recording, structure: Structure, weights, fit_mask, max
     model = Model(recording, structure, base_parameters(recording, structure), max_field_step)
     pair = _linear_pair(model)
     names = [n for n in HYSTERESIS_NAMES if model.parameters[n].free]
+    informed = loop_informed_starts(recording)
     if "magnetization" in model.channels and "displacement" in model.channels:
         # Fit the hysteresis to the magnetization channel first, so that a displacement channel the
         # base transducer cannot follow does not drag the hysteresis parameters; then fit jointly.
         magnetic_only = Model(recording, structure, model.parameters, max_field_step)
         magnetic_only.channels = ("magnetization",)
         starts, magnetic_best = [], None
-        for start in global_search(magnetic_only, weights, fit_mask, names, n_points=n_points, keep=keep):
+        for start in global_search(magnetic_only, weights, fit_mask, names, n_points=n_points, keep=keep,
+                                   extra_starts=informed):
             magnetic = local_fit(magnetic_only, weights, fit_mask, start, max_nfev=60)
             if magnetic_best is None or magnetic.sse < magnetic_best.sse:
                 magnetic_best = magnetic
@@ -140,7 +142,8 @@ def calibrate(recording: Recording, structure: Structure, weights, fit_mask, max
             m = model.magnetization([fitted])[:, 0]
             starts.append(_solve_linear_outputs(model, fitted, m, weights, fit_mask, pair) if pair else fitted)
     else:
-        starts = global_search(model, weights, fit_mask, names, n_points=n_points, keep=keep, linear_outputs=pair)
+        starts = global_search(model, weights, fit_mask, names, n_points=n_points, keep=keep, linear_outputs=pair,
+                               extra_starts=informed)
     best = None
     for start in starts:
         result = local_fit(model, weights, fit_mask, start, max_nfev=80)
@@ -151,6 +154,27 @@ def calibrate(recording: Recording, structure: Structure, weights, fit_mask, max
     if "magnetization" in model.channels and "displacement" in model.channels:
         best.magnetic_values = {n: magnetic_best.values[n] for n in HYSTERESIS_NAMES}
     return best
+
+
+def loop_informed_starts(recording: Recording) -> list:
+    """Starts read off a recorded B-H loop, scored with the Sobol design: Ms just above the peak
+    |M|, k near the coercive field, a from the field at which the rising branch reaches Ms/2
+    (tanh(He/a) = 1/2 at He = 0.55 a). A saturated, square loop puts the truth in a corner of
+    the log-uniform design (Ms within a few per cent of the peak M) that 128 points rarely hit."""
+    if recording.magnetization is None:
+        return []
+    field, m = recording.field, recording.magnetization
+    peak = float(np.max(np.abs(m))) or 1.0
+    rising = np.diff(field) > 0
+    crossings = np.flatnonzero(np.sign(m[1:]) != np.sign(m[:-1]))
+    coercive = [abs(field[i]) for i in crossings]
+    half = [field[i] for i in np.flatnonzero((m[:-1] < 0.5 * peak) & (m[1:] >= 0.5 * peak)) if rising[i]]
+    if not coercive or not half:
+        return []
+    hc = float(np.median(coercive))
+    a = max((float(np.median(half)) - hc) / 0.55, 1e-3 * float(np.max(np.abs(field))))
+    return [{"Ms": 1.05 * peak, "k": max(hc, 1e-9), "a": a * scale, "rho": 0.0, "c": c}
+            for scale in (0.5, 1.0, 2.0) for c in (0.05, 0.3)]
 
 
 def _linear_pair(model):

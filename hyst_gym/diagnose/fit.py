@@ -127,13 +127,14 @@ def _uncertainties(model, names, x, J, sse, n):
 
 
 def global_search(model: Model, weights: dict, mask, names, n_points: int = 128, keep: int = 3,
-                  seed: int = 0, linear_outputs: tuple = ()) -> list[dict]:
+                  seed: int = 0, linear_outputs: tuple = (), extra_starts=()) -> list[dict]:
     """Score a scrambled Sobol design over the boxes of ``names``; return the ``keep`` best starts.
 
     The other parameters stay at the model's values. Output parameters listed in
     ``linear_outputs`` as ``(gain_name, offset_name)`` pairs for the displacement channel are
     solved by linear least squares for each design point (the displacement is affine in
     ``zetahat`` and ``zetahat*M0``), which makes the search insensitive to their start.
+    ``extra_starts`` (value dicts) are scored with the design and kept only if among the best.
     """
     sampler = qmc.Sobol(d=len(names), scramble=True, seed=seed)
     unit = sampler.random(n_points)
@@ -146,6 +147,8 @@ def global_search(model: Model, weights: dict, mask, names, n_points: int = 128,
         for n, xi in zip(names, row):
             v[n] = model.parameters[n].from_x(xi)
         candidates.append(v)
+    candidates += [dict(base, **{n: float(np.clip(v[n], model.parameters[n].lower, model.parameters[n].upper))
+                                 for n in names if n in v}) for v in extra_starts]
     # Parameter sets that break the kernel's validity (alpha*c*Man' >= 1) are skipped.
     candidates = [v for v in candidates if v["rho"] * v["c"] < 0.98]
     objective = Objective(model, weights, mask)
