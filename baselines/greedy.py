@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from hyst_gym.physics import HysteresisParams
+from hyst_gym.physics import FirstOrderPlant, HysteresisParams
 from hyst_gym.physics.hysteresis import DEFAULT_MAX_FIELD_STEP, advance_each
 
 from .agents import Agent
-from .information import FirstOrderPlant
+from .information import zero_order_hold
 from .schedules import ExcitationLimits
 
 
@@ -39,8 +39,7 @@ class GreedyInformationAgent(Agent):
         self.horizon, self.directions = int(horizon), np.asarray(directions, dtype=np.float64)
         self.estimate_of = estimate_of
         self.max_field_step = float(max_field_step)
-        self._pole = np.exp(-plant.decay * limits.dt)
-        self._gain = plant.gain * (1 - self._pole) / plant.decay
+        self._pole, self._gain = zero_order_hold(plant, limits.dt)
         self._n = 0
 
     def _init(self, n):

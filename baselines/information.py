@@ -15,26 +15,23 @@ M, so the cost follows the input's variation.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.signal import lfilter
 
-from hyst_gym.physics import HysteresisBatch, HysteresisParams, simulate_batch
+from hyst_gym.physics import FirstOrderPlant, HysteresisBatch, HysteresisParams, simulate_batch
 
 
-@dataclass(frozen=True)
-class FirstOrderPlant:
-    """``y' = -decay*y + gain*M`` (paper §4.1: decay = lambda = 100 1/s, gain = nu = 1)."""
+def zero_order_hold(plant: FirstOrderPlant, dt: float) -> tuple[float, float]:
+    """``(pole, input_gain)`` of ``y' = -lambda*y + nu*M`` sampled every ``dt`` (s) with M held
+    over each period: ``y[k+1] = pole*y[k] + input_gain*M[k]`` (exact for a held M)."""
+    pole = np.exp(-plant.decay_rate * dt)
+    return pole, plant.gain * (1.0 - pole) / plant.decay_rate
 
-    decay: float = 100.0
-    gain: float = 1.0
 
-    def filter(self, magnetization, dt: float, axis: int = 0) -> np.ndarray:
-        """y at the samples (y_0 = 0) for M held constant over each period dt (s)."""
-        pole = np.exp(-self.decay * dt)
-        b = [0.0, self.gain * (1.0 - pole) / self.decay]
-        return lfilter(b, [1.0, -pole], magnetization, axis=axis)
+def plant_output(plant: FirstOrderPlant, magnetization, dt: float, axis: int = 0) -> np.ndarray:
+    """y at the samples (y_0 = 0) for M held constant over each period dt (s)."""
+    pole, input_gain = zero_order_hold(plant, dt)
+    return lfilter([0.0, input_gain], [1.0, -pole], magnetization, axis=axis)
 
 
 def magnetization_sensitivity(field, a_values, params: HysteresisParams = HysteresisParams(),
@@ -54,8 +51,8 @@ def magnetization_sensitivity(field, a_values, params: HysteresisParams = Hyster
 def fisher_information(field, dt: float, a_values, params: HysteresisParams = HysteresisParams(),
                        plant: FirstOrderPlant = FirstOrderPlant(), noise_std: float = 1.0) -> np.ndarray:
     """Fisher information about a (1/(A/m)^2 per unit noise variance) for each a in ``a_values``."""
-    sensitivity = plant.filter(magnetization_sensitivity(field, a_values, params), dt, axis=0)
+    sensitivity = plant_output(plant, magnetization_sensitivity(field, a_values, params), dt, axis=0)
     return np.sum(sensitivity ** 2, axis=0) / noise_std ** 2
 
 
-__all__ = ["FirstOrderPlant", "magnetization_sensitivity", "fisher_information"]
+__all__ = ["magnetization_sensitivity", "fisher_information", "plant_output", "zero_order_hold"]

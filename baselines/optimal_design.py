@@ -23,10 +23,10 @@ from dataclasses import dataclass, field as dataclass_field
 
 import numpy as np
 
-from hyst_gym.physics import HysteresisParams
+from hyst_gym.physics import FirstOrderPlant, HysteresisParams
 
 from .cma_search import cma_minimize
-from .information import FirstOrderPlant, fisher_information
+from .information import fisher_information
 from .schedules import ExcitationLimits, Schedule, apply_limits
 
 

@@ -155,7 +155,7 @@ def fixed_estimate_integrand(config, field):
         bank.advance(np.full(2, field[i]))
         value, _, curvature = bank.evaluate(points)
         beta[i] = 1.0 if curvature[0] >= 0 else -1.0
-        integrand[i] = beta[i] * config.plant.nu * (value[0] - value[1])
+        integrand[i] = beta[i] * config.plant.gain * (value[0] - value[1])
         magnetization[i] = value[0]
     return integrand, magnetization, beta
 
@@ -219,7 +219,7 @@ def main(args) -> int:
         "settings": {
             "dt_s": dt, "duration_s": DURATION, "ramp_peak_field": RAMP_PEAK, "grid_size": args.grid_size,
             "theta_bounds": [lo, hi], "initial_estimate": THETA0,
-            "scalar": {"lambda": scalar_config.plant.lam, "nu": scalar_config.plant.nu, "eps": scalar_config.eps,
+            "scalar": {"lambda": scalar_config.plant.decay_rate, "nu": scalar_config.plant.gain, "eps": scalar_config.eps,
                        "gamma": scalar_config.gamma},
             "vector": {"A": vector_config.plant.A, "B": vector_config.plant.B, "Q": vector_config.plant.Q,
                        "P": vector_config.plant.lyapunov_matrix.tolist(), "eps": vector_config.eps,

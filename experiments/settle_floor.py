@@ -122,7 +122,7 @@ def paper_floor(raw, rl_seeds, progress):
     time, envelope, bound, fields, sensitivity = error_bound_for(scenario, config, a_true)
     peak_field = float(fields[np.argmax(sensitivity)])
     result = {"a_true": a_true, "initial_error": abs(config.initial_estimate - a_true), "band": band,
-              "plant_lam": config.plant.lam, "gamma": config.gamma, "slew_max": scenario.limits.slew_max,
+              "plant_lam": config.plant.decay_rate, "gamma": config.gamma, "slew_max": scenario.limits.slew_max,
               "peak_field": peak_field, "peak_sensitivity": float(sensitivity.max()),
               "bound_settle_s": first_passage(time, bound, band)}
     ramp = slew_ramp(scenario, peak_field)

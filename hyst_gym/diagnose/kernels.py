@@ -28,31 +28,30 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.linalg
 from numba import njit
 
-from ..physics.hysteresis import advance_shared, magnetization_slope
+from ..physics.constants import ROOM_TEMPERATURE
+from ..physics.hysteresis import _midpoint_substep, advance_shared, magnetization_slope, substep_count
+from ..physics.linear_system import first_order_hold, lti_step
+from ..physics.thermal import a_law_kernel, mean_square_linear_kernel
 
 #: Columns of the per-member magnetic parameter matrix used by :func:`simulate_members`.
 MAGNETIC_COLUMNS = ("a", "k", "alpha", "Ms", "c", "H0", "k_e", "heating", "tau_th", "beta_Ms")
-AMBIENT_TEMPERATURE = 293.15  # K, reference temperature of the fitted a (eq. 4)
+AMBIENT_TEMPERATURE = ROOM_TEMPERATURE  # K, reference temperature of the fitted a (eq. 4)
 
 
 @njit(cache=True)
 def _advance(m, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step):
+    # One member, scalar: the substeps and the midpoint rule of (6) are the physics layer's
+    # (substep_count, _midpoint_substep), so a member gives the bank kernel's numbers.
     change = field_to - field_from
     if change == 0.0:
         return m
-    n = int(math.ceil(abs(change) / max_field_step))
-    if n < 1:
-        n = 1
+    n = substep_count(change, max_field_step)
     step = change / n
     delta = 1.0 if change > 0.0 else -1.0
     for s in range(n):
-        h = field_from + s * step
-        s0 = magnetization_slope(h, m, delta, a, k, alpha, Ms, c, kind)
-        s1 = magnetization_slope(h + 0.5 * step, m + 0.5 * step * s0, delta, a, k, alpha, Ms, c, kind)
-        m = m + step * s1
+        m = _midpoint_substep(field_from + s * step, m, step, delta, a, k, alpha, Ms, c, kind)
     return m
 
 
@@ -126,10 +125,10 @@ def _simulate_one(time, field, row, kind, max_field_step, ambient, out, b):
     for t in range(1, n_samples):
         dt = time[t] - time[t - 1]
         if heating != 0.0:
-            h_sq = (field[t - 1] * field[t - 1] + field[t - 1] * field[t] + field[t] * field[t]) / 3.0
+            h_sq = mean_square_linear_kernel(field[t - 1], field[t])
             decay = math.exp(-dt / tau)
             theta = theta * decay + heating * h_sq * tau * (1.0 - decay)
-            a = a0 * (ambient + theta) / ambient
+            a = a_law_kernel(a0, ambient + theta, ambient)  # (4), a0 at the ambient temperature
             Ms = Ms0 * (1.0 - beta * theta)
             if Ms < 1e-3 * Ms0:
                 Ms = 1e-3 * Ms0
@@ -160,18 +159,14 @@ def _step_lti(forcing, classes, phis, gamma0s, gamma1s, C, x0):
     order = x0.shape[0]
     out = np.empty(n)
     x = x0.copy()
+    new = np.empty(order)
     out[0] = 0.0
     for i in range(order):
         out[0] += C[i] * x[i]
     for t in range(1, n):
         j = classes[t - 1]
-        new = np.zeros(order)
-        for r in range(order):
-            acc = gamma0s[j, r] * forcing[t - 1] + gamma1s[j, r] * forcing[t]
-            for s in range(order):
-                acc += phis[j, r, s] * x[s]
-            new[r] = acc
-        x = new
+        lti_step(phis[j], gamma0s[j], gamma1s[j], x, forcing[t - 1], forcing[t], new)
+        x, new = new, x
         y = 0.0
         for i in range(order):
             y += C[i] * x[i]
@@ -218,16 +213,7 @@ def _first_order_hold(A, B, steps):
     gamma0s = np.empty((steps.size, order))
     gamma1s = np.empty((steps.size, order))
     for j, dt in enumerate(steps):
-        generator = np.zeros((order + 2, order + 2))
-        generator[:order, :order] = A * dt
-        generator[:order, order] = B * dt
-        generator[order, order + 1] = 1.0
-        exp = scipy.linalg.expm(generator)
-        phis[j] = exp[:order, :order]
-        zero_hold = exp[:order, order]
-        ramp = exp[:order, order + 1]
-        gamma0s[j] = zero_hold - ramp
-        gamma1s[j] = ramp
+        phis[j], gamma0s[j], gamma1s[j] = first_order_hold(A, B, dt)
     return phis, gamma0s, gamma1s
 
 

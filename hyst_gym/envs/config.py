@@ -32,6 +32,8 @@ import numpy as np
 
 from ..physics import (FEMRod, FirstOrderPlant, HysteresisParams, LumpedLinear, LumpedNonlinear,
                        ThermalParams, temperature_of_a)
+from ..estimation.estimators import ESTIMATORS
+from ..physics.thermal import a_law
 
 TRANSDUCER_NAMES = {
     "first_order": FirstOrderPlant,
@@ -41,7 +43,7 @@ TRANSDUCER_NAMES = {
 }
 TEMPERATURE_MODES = ("drifting", "fixed")
 SCHEDULES = ("ramp", "sine", "chirp", "prbs")
-ESTIMATOR_NAMES = ("minmax", "gradient", "multiple_model")
+ESTIMATOR_NAMES = tuple(ESTIMATORS)  # the registry of the estimation layer, in its order
 
 #: Default adaptation gain gamma of the vector estimator (24)-(25) in the envs (mechanical
 #: transducers), units of y_eps^-1 s^-1 per (A/m per A/m). The paper's 5e10 (§4.2) is a
@@ -305,7 +307,8 @@ class EnvConfig:
 
     def a_of(self, temperature):
         """a(T) = a_reference*T/T_ref, A/m (eq. 4), for T in K."""
-        return self.thermal.a_reference * np.asarray(temperature, dtype=np.float64) / self.thermal.reference_temperature
+        return a_law(self.thermal.a_reference, np.asarray(temperature, dtype=np.float64),
+                     self.thermal.reference_temperature)
 
     def temperature_for_a(self, a):
         """The temperature (K) at which the material has ``a`` (A/m)."""

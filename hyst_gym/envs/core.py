@@ -27,7 +27,6 @@ import numpy as np
 
 from ..estimation.bank import ModelBank
 from ..estimation.config import EstimatorConfig
-from ..estimation.config import FirstOrderPlant as EstimatorFirstOrder
 from ..estimation.config import LumpedPlant
 from ..estimation.estimators import ESTIMATORS, make_estimator
 from ..physics import FirstOrderPlant, LumpedLinear, LumpedNonlinear
@@ -69,7 +68,7 @@ def estimator_plant(config: EnvConfig):
     """
     transducer = config.transducer
     if isinstance(transducer, FirstOrderPlant):
-        return EstimatorFirstOrder(lam=transducer.decay_rate, nu=transducer.gain)
+        return transducer  # the estimator assumes the true plant (one FirstOrderPlant class)
     if isinstance(transducer, LumpedLinear):
         lumped = transducer
     elif isinstance(transducer, LumpedNonlinear):
@@ -242,10 +241,10 @@ class BatchSimulator:
             self.estimator = None
             self.bank = ModelBank(self.est_config, n)
         plant = self.est_config.plant
-        self._pe_gain = plant.nu if isinstance(plant, EstimatorFirstOrder) else 1.0
+        self._pe_gain = plant.gain if isinstance(plant, FirstOrderPlant) else 1.0
         thermal = config.thermal
         self._decay = math.exp(-config.dt / thermal.time_constant)
-        self._power_per_h2 = thermal.coil_resistance / thermal.turns_per_meter ** 2
+        self._power_per_h2 = thermal.power_per_square_field
         # state
         self.field = np.zeros(n)
         self.magnetization = np.zeros(n)

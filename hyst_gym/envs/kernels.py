@@ -22,6 +22,8 @@ from numba import njit
 
 from ..estimation._kernels import estimator_step, interpolate_bank
 from ..physics.hysteresis import advance_each
+from ..physics.linear_system import lti_step
+from ..physics.thermal import a_law_kernel, mean_square_linear_kernel, temperature_step_kernel
 
 
 @njit(cache=True)
@@ -54,24 +56,17 @@ def plant_step(command, active, field, magnetization, magnetization_prev, state,
         else:
             u0 = drive_gain * m0
             u1 = drive_gain * m1
-        for r in range(s):
-            acc = gamma0[r] * u0 + gamma1[r] * u1
-            for q in range(s):
-                acc += phi[r, q] * state[i, q]
-            state_next[i, r] = acc
+        lti_step(phi, gamma0, gamma1, state[i], u0, u1, state_next[i])
         for r in range(s):
             state[i, r] = state_next[i, r]
         if drifting:
-            h0 = field_from[i]
-            h1 = field[i]
-            power = power_per_h2 * (h0 * h0 + h0 * h1 + h1 * h1) / 3.0
-            time0 = steps[i] * dt
-            amb0 = ambient0[i] + drift_rate[i] * time0
+            power = power_per_h2 * mean_square_linear_kernel(field_from[i], field[i])
+            amb0 = ambient0[i] + drift_rate[i] * (steps[i] * dt)
             amb1 = amb0 + drift_rate[i] * dt
-            offset = thermal_resistance * power - drift_rate[i] * tau
-            temperature[i] = (amb1 + offset) + (temperature[i] - (amb0 + offset)) * decay
+            temperature[i] = temperature_step_kernel(temperature[i], amb0, amb1,
+                                                     thermal_resistance * power - drift_rate[i] * tau, decay)
         steps[i] += 1
-        a_true[i] = a_reference * temperature[i] / t_reference
+        a_true[i] = a_law_kernel(a_reference, temperature[i], t_reference)
         measured[i, 0] = state[i, output_index]
         if velocity_index >= 0:
             measured[i, 1] = state[i, velocity_index]

@@ -3,7 +3,8 @@
 Two plant models are supported; each is the model the *estimator* assumes for the
 output dynamics (the true plant may differ):
 
-* :class:`FirstOrderPlant` -- ``y' = -lam*y + nu*M(H; a)`` (§3.1, §4.1), output ``y`` (E,);
+* :class:`~hyst_gym.physics.transducers.FirstOrderPlant` -- ``y' = -lambda*y + nu*M(H; a)``
+  (``decay_rate``, ``gain``; §3.1, §4.1), output ``y`` (E,);
 * :class:`LumpedPlant` -- the linearized lumped transducer (13) written as
   ``y' = A*y + B*M(H; a)`` with ``y = (displacement m, velocity m/s)`` (§3.2, §4.2),
   output (E, 2).
@@ -22,12 +23,15 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
+from ..physics.constants import PAPER_COUPLING, PAPER_DAMPING, PAPER_STIFFNESS
 from ..physics.hysteresis import DEFAULT_MAX_FIELD_STEP, HysteresisParams
+from ..physics.transducers import FirstOrderPlant
 
-#: Lumped-model coefficients (13) from the paper, §2.2 (eq. (13)).
-PAPER_KHAT = 6.4251e7  # 1/s^2
-PAPER_CHAT = 7.8899e3  # 1/s
-PAPER_ZETAHAT = 1.3724e-2  # m s^-2 per A/m
+#: Lumped-model coefficients (13) from the paper, §2.2, under the estimation layer's names
+#: (the paper's hats); the values are the physics layer's.
+PAPER_KHAT = PAPER_STIFFNESS  # 1/s^2
+PAPER_CHAT = PAPER_DAMPING  # 1/s
+PAPER_ZETAHAT = PAPER_COUPLING  # m s^-2 per A/m
 #: The paper's Lyapunov weight for the vector estimator, §4.2.
 PAPER_Q = ((1.0e10, 0.0), (0.0, 1.0e-8))
 
@@ -44,50 +48,6 @@ def _finite(value, name, owner):
     if not math.isfinite(value):
         raise ValueError(f"{owner}: {name} must be finite, got {value!r}")
     return value
-
-
-@dataclass(frozen=True)
-class FirstOrderPlant:
-    """Scalar plant ``y' = -lam*y + nu*M`` assumed by the scalar estimator (14).
-
-    Attributes
-    ----------
-    lam : float
-        Decay rate lambda, 1/s (> 0). Paper §4.1: 100.
-    nu : float
-        Input gain nu, units of y per second per A/m (> 0). Paper §4.1: 1.
-    """
-
-    lam: float = 100.0
-    nu: float = 1.0
-
-    #: Default dead-zone width eps (units of y) and adaptation gain gamma, chosen for
-    #: the paper's §4.1 case (see README, section estimation).
-    default_eps = 0.01
-    default_gamma = 1.0
-
-    def __post_init__(self):
-        owner = "FirstOrderPlant"
-        lam = _finite(self.lam, "lam", owner)
-        nu = _finite(self.nu, "nu", owner)
-        if lam <= 0:
-            raise ValueError(f"{owner}: lam must be > 0 1/s (a stable plant), got {lam!r}")
-        if nu <= 0:
-            raise ValueError(f"{owner}: nu must be > 0, got {nu!r}")
-        object.__setattr__(self, "lam", lam)
-        object.__setattr__(self, "nu", nu)
-
-    @property
-    def output_size(self) -> int:
-        return 1
-
-    @property
-    def state_matrix(self) -> np.ndarray:
-        return np.array([[-self.lam]])
-
-    @property
-    def input_matrix(self) -> np.ndarray:
-        return np.array([self.nu])
 
 
 @dataclass(frozen=True)
@@ -112,11 +72,6 @@ class LumpedPlant:
     A: tuple = ((0.0, 1.0), (-PAPER_KHAT, -PAPER_CHAT))
     B: tuple = (0.0, PAPER_ZETAHAT)
     Q: tuple = PAPER_Q
-
-    #: Defaults for the paper's §4.2 case: gamma from the paper, eps (units of y_eps =
-    #: B^T P ytilde) chosen here (see README, section estimation).
-    default_eps = 1e-8
-    default_gamma = 5e10
 
     def __post_init__(self):
         owner = "LumpedPlant"
@@ -174,6 +129,12 @@ def _matrix(value, shape, name, owner):
     return array
 
 
+#: Default dead-zone width eps (units of the tuning error) and adaptation gain gamma per
+#: plant model: the paper's §4.1 case (scalar, gamma = 1) and §4.2 case (vector, gamma from
+#: the paper, eps = 1e-8 in units of y_eps = B^T P ytilde) (see README, section estimation).
+PLANT_DEFAULTS = {FirstOrderPlant: {"eps": 0.01, "gamma": 1.0}, LumpedPlant: {"eps": 1e-8, "gamma": 5e10}}
+
+
 @dataclass(frozen=True)
 class EstimatorConfig:
     """Settings shared by every estimator of :mod:`hyst_gym.estimation`.
@@ -189,10 +150,10 @@ class EstimatorConfig:
     eps : float or None
         Width of the saturation / dead zone of (14) and (24), units of the tuning error
         (y for the scalar plant, ``B^T P ytilde`` for the lumped plant); > 0. ``None``:
-        the plant's ``default_eps``.
+        the plant's default in :data:`PLANT_DEFAULTS`.
     gamma : float or None
         Adaptation gain of ``thetahat' = -gamma*y_eps*phi_star``, > 0. ``None``: the
-        plant's ``default_gamma`` (1 for the scalar case, 5e10 for the vector case).
+        plant's default in :data:`PLANT_DEFAULTS` (1 for the scalar case, 5e10 for the vector case).
     plant : FirstOrderPlant or LumpedPlant
         The output dynamics the estimator assumes.
     hysteresis : HysteresisParams
@@ -237,10 +198,14 @@ class EstimatorConfig:
             raise ValueError(f"{owner}: plant must be a FirstOrderPlant or LumpedPlant, got {type(self.plant).__name__}")
         if not isinstance(self.hysteresis, HysteresisParams):
             raise ValueError(f"{owner}: hysteresis must be a HysteresisParams, got {type(self.hysteresis).__name__}")
-        eps = self.plant.default_eps if self.eps is None else _finite(self.eps, "eps", owner)
+        if isinstance(self.plant, FirstOrderPlant) and not self.plant.gain > 0:
+            raise ValueError(f"{owner}: the scalar plant's gain nu must be > 0 for the estimator (14), "
+                             f"got {self.plant.gain!r}")
+        defaults = PLANT_DEFAULTS[type(self.plant)]
+        eps = defaults["eps"] if self.eps is None else _finite(self.eps, "eps", owner)
         if eps <= 0:
             raise ValueError(f"{owner}: eps must be > 0 (dead-zone width), got {eps!r}")
-        gamma = self.plant.default_gamma if self.gamma is None else _finite(self.gamma, "gamma", owner)
+        gamma = defaults["gamma"] if self.gamma is None else _finite(self.gamma, "gamma", owner)
         if gamma <= 0:
             raise ValueError(f"{owner}: gamma must be > 0 (adaptation gain), got {gamma!r}")
         step = _finite(self.max_field_step, "max_field_step", owner)
@@ -282,5 +247,5 @@ class EstimatorConfig:
         return cls(plant=LumpedPlant.from_coefficients(), **changes)
 
 
-__all__ = ["EstimatorConfig", "FirstOrderPlant", "LumpedPlant", "MIN_GRID_SIZE", "MAX_GRID_SIZE",
+__all__ = ["EstimatorConfig", "FirstOrderPlant", "LumpedPlant", "MIN_GRID_SIZE", "MAX_GRID_SIZE", "PLANT_DEFAULTS",
            "PAPER_CHAT", "PAPER_KHAT", "PAPER_Q", "PAPER_ZETAHAT"]

@@ -107,7 +107,7 @@ def error_bound(time, sensitivity, initial_error: float, plant: FirstOrderPlant,
     initial_error : float
         ``|thetahat(0) - a|``, A/m.
     plant : FirstOrderPlant
-        ``lam`` (1/s) and ``nu`` of the scalar plant.
+        ``decay_rate`` lambda (1/s) and ``gain`` nu of the scalar plant.
     gamma : float
         Adaptation gain of the estimator.
 
@@ -123,10 +123,10 @@ def error_bound(time, sensitivity, initial_error: float, plant: FirstOrderPlant,
                          f"{time.shape} and {sensitivity.shape}")
     if np.any(np.diff(time) <= 0):
         raise ValueError("error_bound: time must be strictly increasing")
-    coupling = plant.nu * np.abs(sensitivity)
+    coupling = plant.gain * np.abs(sensitivity)
     coupling = np.maximum(coupling[:-1], coupling[1:]) if time.size > 1 else coupling
-    if np.any(gamma * coupling ** 2 >= plant.lam ** 2 / 4):
-        raise ValueError(f"error_bound: gamma*(nu*phi)**2 reaches lam**2/4 = {plant.lam ** 2 / 4:g}: the "
+    if np.any(gamma * coupling ** 2 >= plant.decay_rate ** 2 / 4):
+        raise ValueError(f"error_bound: gamma*(nu*phi)**2 reaches lam**2/4 = {plant.decay_rate ** 2 / 4:g}: the "
                          f"comparison system is not overdamped there, and the pointwise bound does not hold")
     state = np.array([abs(float(initial_error)), 0.0])
     error = np.empty_like(time)
@@ -134,7 +134,7 @@ def error_bound(time, sensitivity, initial_error: float, plant: FirstOrderPlant,
     # exact on each interval (phi frozen), so the bound does not depend on a step size
     for index in range(1, time.size):
         rate = coupling[index - 1]  # the interval (time[index-1], time[index])
-        generator = np.array([[0.0, -gamma * rate], [rate, -plant.lam]])
+        generator = np.array([[0.0, -gamma * rate], [rate, -plant.decay_rate]])
         state = expm(generator * (time[index] - time[index - 1])) @ state
         error[index] = abs(state[0])
     return error

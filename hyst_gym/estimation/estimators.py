@@ -26,8 +26,8 @@ constant (about 1 s in the paper's cases).
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 
+from ..physics.linear_system import hold_and_ramp
 from ._kernels import estimator_step, minmax_batch, observer_step, pe_integrand_batch, refresh
 from .bank import ModelBank, _readonly
 from .config import EstimatorConfig, FirstOrderPlant
@@ -37,16 +37,10 @@ def hold_matrices(state_matrix: np.ndarray, input_vector: np.ndarray, dt: float)
     """Exact discretization of ``y' = A y + B u`` over ``dt`` for ``u`` linear in time.
 
     Returns ``(Phi, G0, G1)`` with ``y(t+dt) = Phi y(t) + G0 u(t) + G1 (u(t+dt) - u(t))``
-    (zero-order hold ``G0`` plus the first-order-hold correction ``G1``), from the
-    exponential of the augmented matrix ``[[A, B, 0], [0, 0, 1], [0, 0, 0]]``.
+    (zero-order hold ``G0`` plus the first-order-hold correction ``G1``): the increment
+    form of the physics layer's :func:`~hyst_gym.physics.linear_system.hold_and_ramp`.
     """
-    n = state_matrix.shape[0]
-    augmented = np.zeros((n + 2, n + 2))
-    augmented[:n, :n] = state_matrix
-    augmented[:n, n] = input_vector
-    augmented[n, n + 1] = 1.0
-    exponential = scipy.linalg.expm(augmented * dt)
-    return exponential[:n, :n].copy(), exponential[:n, n].copy(), exponential[:n, n + 1] / dt
+    return hold_and_ramp(state_matrix, input_vector, dt)
 
 
 class AdaptiveEstimator:
@@ -88,7 +82,7 @@ class AdaptiveEstimator:
         else:
             self._P = None
             self._BP = None
-            self._gain = plant.nu  # f = nu*M in (14)
+            self._gain = plant.gain  # f = nu*M in (14)
         self._tuning_row = np.ascontiguousarray(self._BP if self._vector else np.zeros(self._n))
         self._eps = config.eps
         self._gamma = config.gamma
@@ -326,7 +320,7 @@ class AdaptiveEstimator:
         feedback gain in A/m (0 for the vector law (24), which has no such term)."""
         if self._vector:
             return 0.0
-        return self.config.plant.lam * self._eps / self._gain
+        return self.config.plant.decay_rate * self._eps / self._gain
 
     def _reset_extra(self, rows):
         pass

@@ -7,6 +7,7 @@ from .anhysteretic import (ANHYSTERETIC_KINDS, ISING, LANGEVIN, anhysteretic_kin
                            anhysteretic_magnetization)
 from .hysteresis import (DEFAULT_MAX_FIELD_STEP, HysteresisBatch, HysteresisParams, advance_each,
                          advance_shared, simulate_batch, simulate_magnetization, simulate_shared)
+from .constants import PAPER_A, PAPER_COUPLING, PAPER_DAMPING, PAPER_STIFFNESS, ROOM_TEMPERATURE
 from .fem import FEMRod, analytic_frequencies
 from .linear_system import DiscreteTransducer
 from .thermal import ThermalParams, a_of_temperature, advance_temperature, temperature_of_a
@@ -20,4 +21,5 @@ __all__ = [
     "DEFAULT_BIAS_MAGNETIZATION", "DiscreteTransducer", "FEMRod", "FirstOrderPlant", "LumpedLinear",
     "LumpedNonlinear", "RodParams", "analytic_frequencies",
     "ThermalParams", "a_of_temperature", "advance_temperature", "temperature_of_a",
+    "PAPER_A", "PAPER_COUPLING", "PAPER_DAMPING", "PAPER_STIFFNESS", "ROOM_TEMPERATURE",
 ]

@@ -38,9 +38,20 @@ _BLAS_THRESHOLD = 16
 def first_order_hold(A, b, dt, scale=None):
     """Return ``(Phi, Gamma0, Gamma1)`` of ``z' = A z + b u`` with ``u`` linear over ``dt``.
 
-    ``scale`` (optional, shape ``(n,)``) is a diagonal similarity applied before the
-    exponential to balance states of very different size (metres against m/s); the
-    result is transformed back, so it changes only rounding, not the answer.
+    ``z[k+1] = Phi z[k] + Gamma0 u[k] + Gamma1 u[k+1]``. ``scale`` (optional, shape ``(n,)``)
+    is a diagonal similarity applied before the exponential to balance states of very
+    different size (metres against m/s); the result is transformed back, so it changes only
+    rounding, not the answer.
+    """
+    phi, hold, ramp = hold_and_ramp(A, b, dt, scale)
+    return phi, hold - ramp, ramp
+
+
+def hold_and_ramp(A, b, dt, scale=None):
+    """The same exact discretization in the increment form ``(Phi, Hold, Ramp)``:
+    ``z[k+1] = Phi z[k] + Hold u[k] + Ramp (u[k+1] - u[k])`` (Hold is the zero-order hold,
+    Ramp the response to a unit increment spread linearly over the step). The one
+    place the matrix exponential of a linear system is taken; ``scale`` as above.
     """
     A = np.asarray(A, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64).reshape(-1)
@@ -61,20 +72,27 @@ def first_order_hold(A, b, dt, scale=None):
     hold = exponential[:n, n]        # response to a constant u[k]
     ramp = exponential[:n, n + 1]    # response to the increment u[k+1] - u[k]
     phi = phi_s * scale[:, None] * (1.0 / scale)[None, :]
-    gamma1 = ramp * scale
-    gamma0 = hold * scale - gamma1
-    return phi, gamma0, gamma1
+    return phi, hold * scale, ramp * scale
+
+
+@njit(cache=True, inline="always")
+def lti_step(phi, gamma0, gamma1, state, u0, u1, out):
+    """One first-order-hold step of one system: ``out = phi state + gamma0 u0 + gamma1 u1``.
+
+    The stepping loop of every linear system of the package (transducers, the batched
+    env plant, the mismatch tool's mechanics and sensors); ``out`` may not be ``state``."""
+    n_state = phi.shape[0]
+    for i in range(n_state):
+        acc = gamma0[i] * u0 + gamma1[i] * u1
+        for j in range(n_state):
+            acc += phi[i, j] * state[j]
+        out[i] = acc
 
 
 @njit(cache=True)
 def _advance_small(phi, gamma0, gamma1, state, u0, u1, out):
-    n_state = phi.shape[0]
     for s in range(state.shape[0]):
-        for i in range(n_state):
-            acc = gamma0[i] * u0[s] + gamma1[i] * u1[s]
-            for j in range(n_state):
-                acc += phi[i, j] * state[s, j]
-            out[s, i] = acc
+        lti_step(phi, gamma0, gamma1, state[s], u0[s], u1[s], out[s])
 
 
 @dataclass(frozen=True, eq=False)
@@ -267,4 +285,5 @@ def simulate_sampled(params, time, magnetization, state0=None, rel_tol: float = 
     return outputs[:, 0] if single else outputs
 
 
-__all__ = ["DiscreteTransducer", "LINEAR_DRIVE", "QUADRATIC_DRIVE", "first_order_hold", "simulate_sampled"]
+__all__ = ["DiscreteTransducer", "LINEAR_DRIVE", "QUADRATIC_DRIVE", "first_order_hold", "hold_and_ramp", "lti_step",
+           "simulate_sampled"]

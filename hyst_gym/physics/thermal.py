@@ -27,11 +27,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
+from .constants import PAPER_A, ROOM_TEMPERATURE
 from .transducers import check_positive
-
-#: 20 degrees C, in K
-ROOM_TEMPERATURE = 293.15
 
 
 @dataclass(frozen=True)
@@ -63,7 +62,7 @@ class ThermalParams:
     thermal_resistance: float = 0.2
     heat_capacity: float = 600.0
     reference_temperature: float = ROOM_TEMPERATURE
-    a_reference: float = 7012.0
+    a_reference: float = PAPER_A
     ambient_temperature: float = ROOM_TEMPERATURE
     ambient_drift_rate: float = 0.0
 
@@ -91,6 +90,11 @@ class ThermalParams:
         current = self.current(field)
         return self.coil_resistance * current * current
 
+    @property
+    def power_per_square_field(self) -> float:
+        """``R/n**2``: Joule power (W) per (A/m)^2 of applied field, from (11) ``I = H/n``."""
+        return self.coil_resistance / self.turns_per_meter ** 2
+
     def ambient_at(self, time):
         """Ambient temperature (K) at ``time`` (s)."""
         return self.ambient_temperature + self.ambient_drift_rate * np.asarray(time, dtype=np.float64)
@@ -104,12 +108,40 @@ class ThermalParams:
         return dataclasses.replace(self, **changes)
 
 
+# The laws below are plain arithmetic, written once: numpy code calls them on arrays, and
+# their compiled twins (njit of the same function) serve the kernels of envs and diagnose,
+# so a kernel and the array API give the same numbers bit for bit.
+
+
+def a_law(a_reference, temperature, reference_temperature):
+    """a(T) of eq. (4): ``a_reference*T/T_ref`` (A/m), proportional to the absolute temperature."""
+    return a_reference * temperature / reference_temperature
+
+
+def mean_square_linear(start, end):
+    """Mean of ``h**2`` over a step on which ``h`` moves linearly from ``start`` to ``end``."""
+    return (start * start + start * end + end * end) / 3.0
+
+
+def temperature_step(temperature, ambient_start, ambient_end, offset, decay):
+    """Exact step of ``tau*T' = -(T - T_amb(t)) + R_th*P`` for a power P held and an ambient
+    linear over the step: ``T1 = Tp(t+dt) + (T0 - Tp(t))*decay`` with the particular
+    solution ``Tp = T_amb + offset``, ``offset = R_th*P - drift*tau``, ``decay = exp(-dt/tau)``."""
+    return (ambient_end + offset) + (temperature - (ambient_start + offset)) * decay
+
+
+#: compiled twins of the laws above, for the njit kernels (inlined where they are called)
+a_law_kernel = njit(cache=True, inline="always")(a_law)
+mean_square_linear_kernel = njit(cache=True, inline="always")(mean_square_linear)
+temperature_step_kernel = njit(cache=True, inline="always")(temperature_step)
+
+
 def a_of_temperature(temperature, params: ThermalParams = ThermalParams()):
     """a(T) = a_ref*T/T_ref (A/m), eq. (4): proportional to the absolute temperature (K)."""
     temperature = np.asarray(temperature, dtype=np.float64)
     if np.any(~np.isfinite(temperature) | (temperature <= 0)):
         raise ValueError("a_of_temperature: temperature must be finite and > 0 K")
-    result = params.a_reference * temperature / params.reference_temperature
+    result = np.asarray(a_law(params.a_reference, temperature, params.reference_temperature))
     return float(result) if result.ndim == 0 else result
 
 
@@ -120,13 +152,6 @@ def temperature_of_a(a, params: ThermalParams = ThermalParams()):
         raise ValueError("temperature_of_a: a must be finite and > 0 A/m")
     result = params.reference_temperature * a / params.a_reference
     return float(result) if result.ndim == 0 else result
-
-
-def mean_square_linear(start, end):
-    """Mean of ``h**2`` over a step on which ``h`` moves linearly from ``start`` to ``end``."""
-    start = np.asarray(start, dtype=np.float64)
-    end = np.asarray(end, dtype=np.float64)
-    return (start * start + start * end + end * end) / 3.0
 
 
 def advance_temperature(temperature, field_start, field_end, dt, params: ThermalParams = ThermalParams(),
@@ -161,18 +186,21 @@ def advance_temperature(temperature, field_start, field_end, dt, params: Thermal
     """
     check_positive("advance_temperature", dt=dt)
     tau = params.time_constant
-    power = params.coil_resistance * mean_square_linear(field_start, field_end) / params.turns_per_meter ** 2
+    power = params.power_per_square_field * mean_square_linear(np.asarray(field_start, dtype=np.float64),
+                                                               np.asarray(field_end, dtype=np.float64))
     decay = math.exp(-dt / tau)
+    temperature = np.asarray(temperature, dtype=np.float64)
     if ambient is None:
         drift = params.ambient_drift_rate
         ambient_start = params.ambient_temperature + drift * time
         ambient_end = ambient_start + drift * dt
-        particular_start = ambient_start + params.thermal_resistance * power - drift * tau
-        particular_end = ambient_end + params.thermal_resistance * power - drift * tau
+        offset = params.thermal_resistance * power - drift * tau
     else:
-        particular_start = particular_end = np.asarray(ambient, dtype=np.float64) + params.thermal_resistance * power
-    return particular_end + (np.asarray(temperature, dtype=np.float64) - particular_start) * decay
+        ambient_start = ambient_end = np.asarray(ambient, dtype=np.float64)
+        offset = params.thermal_resistance * power
+    return np.asarray(temperature_step(temperature, ambient_start, ambient_end, offset, decay))
 
 
-__all__ = ["ROOM_TEMPERATURE", "ThermalParams", "a_of_temperature", "advance_temperature",
-           "mean_square_linear", "temperature_of_a"]
+__all__ = ["ROOM_TEMPERATURE", "ThermalParams", "a_law", "a_law_kernel", "a_of_temperature", "advance_temperature",
+           "mean_square_linear", "mean_square_linear_kernel", "temperature_of_a", "temperature_step",
+           "temperature_step_kernel"]

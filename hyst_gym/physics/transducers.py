@@ -43,12 +43,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .constants import PAPER_COUPLING, PAPER_DAMPING, PAPER_STIFFNESS
 from .linear_system import LINEAR_DRIVE, QUADRATIC_DRIVE, DiscreteTransducer, first_order_hold, simulate_sampled
 
-#: the paper's identified coefficients of (13)
-PAPER_DAMPING = 7.8899e3       # chat, 1/s
-PAPER_STIFFNESS = 6.4251e7     # khat, 1/s^2
-PAPER_COUPLING = 1.3724e-2     # zetahat, (m/s^2)/(A/m)
 
 
 def check_positive(owner, **values):
@@ -182,6 +179,9 @@ DEFAULT_BIAS_MAGNETIZATION = RodParams().bias_magnetization()
 class FirstOrderPlant(_Transducer):
     """The scalar plant ``y' = -lambda*y + nu*M`` of the paper's first example (§3.1).
 
+    The one first-order plant of the package: the true plant of the environments, the
+    model the scalar estimator (14) assumes, and the filter of the Fisher information.
+
     Attributes
     ----------
     decay_rate : float
@@ -203,6 +203,21 @@ class FirstOrderPlant(_Transducer):
         phi, g0, g1 = first_order_hold(np.array([[-self.decay_rate]]), np.array([1.0]), dt)
         return DiscreteTransducer(dt, phi, g0, g1, LINEAR_DRIVE, float(self.gain), 0, None,
                                   name="FirstOrderPlant", static_response=np.array([1.0 / self.decay_rate]))
+
+    @property
+    def output_size(self) -> int:
+        """One output, ``y``."""
+        return 1
+
+    @property
+    def state_matrix(self) -> np.ndarray:
+        """A of ``y' = A y + B M``: ``[[-lambda]]``, 1/s."""
+        return np.array([[-self.decay_rate]], dtype=np.float64)
+
+    @property
+    def input_matrix(self) -> np.ndarray:
+        """B of ``y' = A y + B M``: ``[nu]``."""
+        return np.array([self.gain], dtype=np.float64)
 
 
 @dataclass(frozen=True)

@@ -3,9 +3,10 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from baselines.agents import ScheduleAgent
-from baselines.information import FirstOrderPlant, fisher_information, magnetization_sensitivity
+from baselines.information import fisher_information, magnetization_sensitivity, plant_output
 from baselines.schedules import (SCHEDULES, TUNING_GRIDS, ExcitationLimits, SchroederMultisine, apply_limits,
                                  grid_points, make_schedule)
+from hyst_gym.physics import FirstOrderPlant
 
 LIMITS = ExcitationLimits(field_max=1.2e5, slew_max=2.0e5, dt=0.01)
 
@@ -67,8 +68,8 @@ def test_schedule_agent_follows_schedule_and_resets_per_env():
 def test_plant_filter_matches_ode_solution():
     plant, dt = FirstOrderPlant(), 0.01
     magnetization = 1e5 * np.sin(np.arange(60) * 0.3)
-    y = plant.filter(magnetization, dt)
-    sol = solve_ivp(lambda t, s: -plant.decay * s + plant.gain * magnetization[min(int(t / dt), 59)],
+    y = plant_output(plant, magnetization, dt)
+    sol = solve_ivp(lambda t, s: -plant.decay_rate * s + plant.gain * magnetization[min(int(t / dt), 59)],
                     (0, 59 * dt), [0.0], t_eval=np.arange(60) * dt, max_step=dt / 50, rtol=1e-10, atol=1e-6)
     np.testing.assert_allclose(y, sol.y[0], rtol=1e-4, atol=1e-3 * np.max(np.abs(y)))
 

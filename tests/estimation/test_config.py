@@ -35,8 +35,10 @@ def test_non_hurwitz_lumped_plant_is_rejected():
 
 
 def test_bad_plant_and_weight_are_rejected():
-    with pytest.raises(ValueError, match="lam must be > 0"):
-        FirstOrderPlant(lam=-100.0)
+    with pytest.raises(ValueError, match="decay_rate must be a finite number > 0"):
+        FirstOrderPlant(decay_rate=-100.0)
+    with pytest.raises(ValueError, match="gain nu must be > 0"):
+        EstimatorConfig(plant=FirstOrderPlant(gain=-1.0))
     with pytest.raises(ValueError, match="positive definite"):
         LumpedPlant(Q=((1.0, 0.0), (0.0, -1.0)))
     with pytest.raises(ValueError, match="shape"):

@@ -25,7 +25,7 @@ def paper_curve():
 def test_constant_sensitivity_matches_closed_form():
     # e'' + lam*e' + gamma*phi^2*e = 0, e(0) = e0, e'(0) = 0 (ytilde(0) = 0)
     phi, gamma, e0 = 9.0, 1.0, 22.0
-    roots = np.roots([1.0, PLANT.lam, gamma * phi ** 2])
+    roots = np.roots([1.0, PLANT.decay_rate, gamma * phi ** 2])
     slow, fast = np.sort(roots)[::-1]
     time = np.linspace(0.0, 3.0, 301)
     closed = e0 * (fast * np.exp(slow * time) - slow * np.exp(fast * time)) / (fast - slow)
