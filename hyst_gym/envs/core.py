@@ -28,7 +28,7 @@ import numpy as np
 from ..estimation.bank import ModelBank
 from ..estimation.config import EstimatorConfig
 from ..estimation.config import LumpedPlant
-from ..estimation.estimators import ESTIMATORS, make_estimator
+from ..estimation.estimators import ESTIMATORS, Law, make_estimator
 from ..physics import FirstOrderPlant, LumpedLinear, LumpedNonlinear
 from .config import MECHANICAL_ESTIMATOR_GAMMA, EnvConfig
 from .kernels import (announce_compilation, clip_actions, excitation_step, fill_info, fill_observation, finish_step,
@@ -174,7 +174,7 @@ def action_array(action, shape: tuple, name: str = "action") -> np.ndarray:
 
 def uses_fused_step(mode: str, estimator: str) -> bool:
     """Whether the step is the one fused kernel (Excitation with a compiled estimator law)."""
-    return mode == EXCITATION and ESTIMATORS[estimator]._mode in (0, 1)
+    return mode == EXCITATION and ESTIMATORS[estimator].law != Law.HELD
 
 
 def step_kernels(mode: str, estimator: str) -> tuple:

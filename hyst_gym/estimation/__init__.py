@@ -4,9 +4,11 @@ Public API
 ----------
 :class:`EstimatorConfig`, :class:`FirstOrderPlant`, :class:`LumpedPlant`
     frozen, validated settings;
-:class:`MinMaxEstimator` (14)-(15) / (24)-(25), :class:`GradientEstimator`,
+:class:`MinMaxEstimator` (14)-(16) / (24)-(25), :class:`GradientEstimator`,
 :class:`MultipleModelEstimator`, :func:`make_estimator`
     batched estimators sharing ``reset`` / ``update(field, measured_output, dt)``;
+:class:`Law`
+    the parameter law each estimator runs (min-max (16)/(25), gradient, held);
 :class:`ModelBank`
     the E x G hysteresis bank;
 :func:`minmax_solution`, :func:`envelopes`
@@ -21,13 +23,13 @@ Public API
 from .bank import ModelBank
 from .config import EstimatorConfig, FirstOrderPlant, LumpedPlant
 from .convergence import error_bound, first_passage, sensitivity_curve, sensitivity_envelope
-from .estimators import (ESTIMATORS, AdaptiveEstimator, GradientEstimator, MinMaxEstimator,
+from .estimators import (ESTIMATORS, AdaptiveEstimator, GradientEstimator, Law, MinMaxEstimator,
                          MultipleModelEstimator, hold_matrices, make_estimator)
 from .minmax import envelopes, minmax_solution
 from .pe import PEMonitor
 
 __all__ = [
-    "AdaptiveEstimator", "ESTIMATORS", "EstimatorConfig", "FirstOrderPlant", "GradientEstimator", "LumpedPlant",
+    "AdaptiveEstimator", "ESTIMATORS", "EstimatorConfig", "FirstOrderPlant", "GradientEstimator", "Law", "LumpedPlant",
     "MinMaxEstimator", "ModelBank", "MultipleModelEstimator", "PEMonitor", "envelopes", "error_bound",
     "first_passage", "hold_matrices", "make_estimator", "minmax_solution", "sensitivity_curve", "sensitivity_envelope",
 ]

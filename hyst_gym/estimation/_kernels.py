@@ -1,16 +1,47 @@
-"""Compiled inner loops of the estimators: bank advance, interpolation, min-max covers.
+"""Compiled inner loops of the estimators: bank advance, interpolation, min-max covers,
+and the parameter laws.
 
 All kernels work on a batch of E independent systems; the bank of each system holds
 G hysteresis models on the same grid over Theta. ``cache=True`` everywhere so the
 compilation cost is paid once per machine.
+
+The parameter laws, one function each (selected by :class:`Law`):
+
+* :func:`minmax_law` -- the min-max law of Nealis & Smith: the min-max problem (15) solved
+  at the sign of the tuning error, its gap nu_star fed back into yhat ((14) scalar, (24)
+  vector) and its slope phi_star driving the adaptation (16) (scalar) / (25) (vector);
+* :func:`gradient_law` -- the gradient law: df/dtheta(thetahat) in place of phi_star and
+  no min-max term (the baseline the paper argues against, §1);
+* :func:`held_law` -- no law in the kernel: thetahat is held and set in Python
+  (the multiple-model estimator).
+
+All three then take the same explicit Euler step of the adaptation, :func:`adaptation_step`.
 """
 
 from __future__ import annotations
+
+from enum import IntEnum
 
 import numpy as np
 from numba import njit
 
 from ..physics.hysteresis import advance_shared
+
+
+class Law(IntEnum):
+    """The parameter law run by the compiled estimator step (its value is what the kernels see)."""
+
+    #: the min-max law: (14)-(16) for the scalar plant, (24)-(25) for the vector plant
+    MINMAX = 0
+    #: the gradient law: df/dtheta in place of phi_star of (16)/(25), no min-max term
+    GRADIENT = 1
+    #: no law in the kernel: thetahat is held here and set by the estimator in Python
+    HELD = 2
+
+
+# plain integers for the kernels (numba freezes module globals as compile-time constants)
+_MINMAX = int(Law.MINMAX)
+_GRADIENT = int(Law.GRADIENT)
 
 
 @njit(cache=True)
@@ -212,15 +243,69 @@ def _boundary_layer(z_free, kappa_pos, kappa_neg, eps):
     return z_free + kappa_neg
 
 
+@njit(cache=True, inline="always")
+def minmax_law(grid, g, theta_hat, z_free, slope, weight, offset, eps, xs, ys, hull):
+    """The min-max law at one system: returns ``(z, nu_star, phi_star)``.
+
+    ``g`` (G,) holds ``f(theta_i) - f(thetahat)``; ``z_free`` is the tuning error the step
+    would reach without feedback. The min-max problem (15) (scalar) / (25) (vector) is solved
+    for the sign of z_free; the boundary layer of (14)/(24) then gives z, which has that sign
+    (both kappas > -eps), and only if it came out with the other sign after all is (15)
+    solved again for that one. nu_star feeds back into yhat ((14)/(24)); phi_star drives the
+    adaptation (16) / (25) in :func:`adaptation_step`.
+    """
+    nu_pos = 0.0
+    nu_neg = 0.0
+    phi_pos = 0.0
+    phi_neg = 0.0
+    if z_free >= 0.0:
+        nu_pos, phi_pos = minmax_one(grid, g, theta_hat, 1.0, slope, xs, ys, hull)
+    else:
+        nu_neg, phi_neg = minmax_one(grid, g, theta_hat, -1.0, slope, xs, ys, hull)
+    z = _boundary_layer(z_free, weight * (nu_pos - offset), weight * (nu_neg - offset), eps)
+    if (z >= 0.0) != (z_free >= 0.0):
+        if z >= 0.0:
+            nu_pos, phi_pos = minmax_one(grid, g, theta_hat, 1.0, slope, xs, ys, hull)
+        else:
+            nu_neg, phi_neg = minmax_one(grid, g, theta_hat, -1.0, slope, xs, ys, hull)
+    if z >= 0.0:
+        return z, nu_pos, phi_pos
+    return z, nu_neg, phi_neg
+
+
+@njit(cache=True, inline="always")
+def gradient_law(z_free, slope, weight, offset, eps):
+    """The gradient law at one system: returns ``(z, 0, df/dtheta)``: the min-max law of
+    (16)/(25) with the bank's slope at thetahat in place of phi_star and no min-max gap in yhat."""
+    z = _boundary_layer(z_free, weight * (0.0 - offset), weight * (0.0 - offset), eps)
+    return z, 0.0, slope
+
+
+@njit(cache=True, inline="always")
+def held_law(z_free, weight, offset, eps):
+    """No parameter law: returns ``(z, 0, 0)``, so :func:`adaptation_step` leaves thetahat
+    where it is (the estimator sets it in Python); yhat keeps the dead-zone feedback of (14)."""
+    z = _boundary_layer(z_free, weight * (0.0 - offset), weight * (0.0 - offset), eps)
+    return z, 0.0, 0.0
+
+
+@njit(cache=True, inline="always")
+def adaptation_step(theta_hat, dt, gamma, gain, y_eps, phi, lo, hi):
+    """Explicit Euler step of ``thetahat' = -gamma*nu*y_eps*phi`` ((16) scalar, with nu the
+    plant gain; (25) vector, gain 1), clipped into Theta = [lo, hi]."""
+    t_new = theta_hat - dt * gamma * gain * y_eps * phi
+    return min(hi, max(lo, t_new))
+
+
 @njit(cache=True)
 def observer_step(grid, values, theta, f_hat, yhat, measured, transition, hold0, hold1, weight, tuning_row,
-                  vector, eps, offset, gamma, gain, mode, dt, lo, hi,
+                  vector, eps, offset, gamma, gain, law, dt, lo, hi,
                   out_slope, out_curvature, out_ytilde, out_y_eps, out_sat, out_sign, out_nu, out_phi):
     """One control step of every system after the bank has moved (see AdaptiveEstimator.update).
 
     In place: ``theta`` (thetahat_k -> thetahat_k+1), ``f_hat`` (f(thetahat_k) on the old
-    bank -> f(thetahat_k+1) on the new one), ``yhat`` and the ``out_*`` arrays. ``mode``:
-    0 min-max law, 1 gradient law, 2 no parameter law (theta held). ``tuning_row`` is
+    bank -> f(thetahat_k+1) on the new one), ``yhat`` and the ``out_*`` arrays. ``law``: a
+    :class:`Law` value (min-max (16)/(25), gradient, or held). ``tuning_row`` is
     B^T P (vector) and unused for the scalar plant.
     """
     E, n = yhat.shape
@@ -245,43 +330,21 @@ def observer_step(grid, values, theta, f_hat, yhat, measured, transition, hold0,
                 z_free += tuning_row[i] * free[i]
         else:
             z_free = free[0]
-        nu_pos = 0.0
-        nu_neg = 0.0
-        phi_pos = 0.0
-        phi_neg = 0.0
-        # z has the sign of z_free (both kappas > -eps), and _boundary_layer reads only the
-        # kappa of that sign: solve the min-max for that sign alone, and for the other
-        # only if z came out with the other sign after all.
-        if mode == 0:
+        if law == _MINMAX:
             for i in range(G):
                 g[i] = row[i] - f_end
-            if z_free >= 0.0:
-                nu_pos, phi_pos = minmax_one(grid, g, theta[e], 1.0, slope_end, xs, ys, hull)
-            else:
-                nu_neg, phi_neg = minmax_one(grid, g, theta[e], -1.0, slope_end, xs, ys, hull)
-        elif mode == 1:
-            phi_pos = slope_end
-            phi_neg = slope_end
-        z = _boundary_layer(z_free, weight * (nu_pos - offset), weight * (nu_neg - offset), eps)
-        if mode == 0 and (z >= 0.0) != (z_free >= 0.0):
-            if z >= 0.0:
-                nu_pos, phi_pos = minmax_one(grid, g, theta[e], 1.0, slope_end, xs, ys, hull)
-            else:
-                nu_neg, phi_neg = minmax_one(grid, g, theta[e], -1.0, slope_end, xs, ys, hull)
-        sat = min(1.0, max(-1.0, z / eps))
-        if z >= 0.0:
-            applied = (nu_pos - offset) * sat
-            phi_sel = phi_pos
+            z, nu, phi = minmax_law(grid, g, theta[e], z_free, slope_end, weight, offset, eps, xs, ys, hull)
+        elif law == _GRADIENT:
+            z, nu, phi = gradient_law(z_free, slope_end, weight, offset, eps)
         else:
-            applied = (nu_neg - offset) * sat
-            phi_sel = phi_neg
+            z, nu, phi = held_law(z_free, weight, offset, eps)
+        sat = min(1.0, max(-1.0, z / eps))
+        applied = (nu - offset) * sat
         for i in range(n):
             new_state[i] = free[i] - applied * hold0[i] + measured[e, i]
             yhat[e, i] = new_state[i]
         y_eps = z if vector else z - eps * sat
-        t_new = theta[e] - dt * gamma * gain * y_eps * phi_sel
-        t_new = min(hi, max(lo, t_new))
-        theta[e] = t_new
+        theta[e] = adaptation_step(theta[e], dt, gamma, gain, y_eps, phi, lo, hi)
     refresh(grid, values, theta, yhat, measured, tuning_row, vector, eps, f_hat, out_slope, out_curvature,
             out_ytilde, out_y_eps, out_sat, out_sign, out_nu, out_phi)
 
@@ -327,13 +390,13 @@ def refresh(grid, values, theta, yhat, measured, tuning_row, vector, eps, out_va
 @njit(cache=True)
 def estimator_step(field, measured, magnetization, bank_field, a, k, alpha, Ms, c, kind, max_field_step, grid,
                    theta, f_hat, yhat, y, transition, hold0, hold1, weight, tuning_row, vector, eps, offset, gamma,
-                   gain, mode, dt, lo, hi, out_slope, out_curvature, out_ytilde, out_y_eps, out_sat, out_sign,
+                   gain, law, dt, lo, hi, out_slope, out_curvature, out_ytilde, out_y_eps, out_sat, out_sign,
                    out_nu, out_phi):
     """One whole control step of every system: bank advance, then :func:`observer_step`.
 
     ``field`` (E,) and ``measured`` (E, n) are the values at the end of the step. Returns
     0, or (before touching any state) 1 if ``field`` or 2 if ``measured`` is not finite.
-    ``mode`` 0 (min-max) or 1 (gradient) only: the law of mode 2 runs in Python.
+    ``law`` :attr:`Law.MINMAX` or :attr:`Law.GRADIENT` only: :attr:`Law.HELD` runs in Python.
     """
     E, n = y.shape
     for e in range(E):
@@ -346,7 +409,7 @@ def estimator_step(field, measured, magnetization, bank_field, a, k, alpha, Ms, 
     for e in range(E):
         bank_field[e] = field[e]
     observer_step(grid, magnetization, theta, f_hat, yhat, measured, transition, hold0, hold1, weight, tuning_row,
-                  vector, eps, offset, gamma, gain, mode, dt, lo, hi, out_slope, out_curvature, out_ytilde,
+                  vector, eps, offset, gamma, gain, law, dt, lo, hi, out_slope, out_curvature, out_ytilde,
                   out_y_eps, out_sat, out_sign, out_nu, out_phi)
     for e in range(E):
         for i in range(n):

@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..physics.linear_system import hold_and_ramp
-from ._kernels import estimator_step, minmax_batch, observer_step, pe_integrand_batch, refresh
+from ._kernels import Law, estimator_step, minmax_batch, observer_step, pe_integrand_batch, refresh
 from .bank import ModelBank, _readonly
 from .config import EstimatorConfig, FirstOrderPlant
 
@@ -46,8 +46,8 @@ def hold_matrices(state_matrix: np.ndarray, input_vector: np.ndarray, dt: float)
 class AdaptiveEstimator:
     """Shared machinery of the bank-based estimators (see the module docstring).
 
-    Subclasses pick the parameter law run by the compiled step (``_mode``: min-max,
-    gradient, or none with their own ``_next_theta``). The min-max solution (15)/(25) is computed at
+    Subclasses pick the parameter law run by the compiled step (``law``, a :class:`Law`:
+    min-max (16)/(25), gradient, or held with their own ``_next_theta``). The min-max solution (15)/(25) is computed at
     every step for every estimator so that all of them expose the same observation
     arrays.
 
@@ -60,8 +60,8 @@ class AdaptiveEstimator:
 
     #: short name used by :func:`make_estimator` and in reports
     name = "base"
-    #: parameter law run by the compiled step: 0 min-max, 1 gradient, 2 none (subclass sets theta)
-    _mode = 0
+    #: parameter law run by the compiled step (Law.HELD: the subclass sets theta in Python)
+    law = Law.MINMAX
 
     def __init__(self, config: EstimatorConfig, n_systems: int = 1):
         if not isinstance(config, EstimatorConfig):
@@ -246,7 +246,7 @@ class AdaptiveEstimator:
                 measured = measured.reshape(self.n_systems, 1)
             else:
                 measured = self._output_batch(measured)
-        if self._mode == 2:
+        if self.law == Law.HELD:
             self._update_python(field, measured, dt)
             return self._a_estimate_view
         # Open-loop response of yhat over the step (f(thetahat) linear in time), plus the
@@ -262,7 +262,7 @@ class AdaptiveEstimator:
         return self._a_estimate_view
 
     def _update_python(self, field, measured, dt):
-        """The step of a subclass law that runs in Python (``_mode`` 2)."""
+        """The step of a subclass law that runs in Python (:attr:`Law.HELD`)."""
         if not np.all(np.isfinite(field)):
             raise ValueError(f"{type(self).__name__}: field must be finite")
         if not np.all(np.isfinite(measured)):
@@ -273,7 +273,7 @@ class AdaptiveEstimator:
         self.bank.advance(field)
         observer_step(self.bank.grid, self.bank._magnetization, self._theta, self._f_hat, self._yhat, measured,
                       phi_matrix, hold0, hold1, weight, self._tuning_row, self._vector, self._eps,
-                      self._dead_zone_offset, self._gamma, self._gain, self._mode, float(dt), self._lo, self._hi,
+                      self._dead_zone_offset, self._gamma, self._gain, int(self.law), float(dt), self._lo, self._hi,
                       self._slope, self._curvature, self._ytilde, self._y_eps, self._sat, self._sign,
                       self._nu, self._phi)
         self._y[...] = measured
@@ -286,7 +286,7 @@ class AdaptiveEstimator:
     def _kernel_args(self, dt: float) -> tuple:
         """Arguments of :func:`~._kernels.estimator_step` after ``(field, measured)`` for
         steps of ``dt`` s: live arrays (changed in place) and constants. For the env's
-        fused step kernel; only for the compiled laws (``_mode`` 0 and 1)."""
+        fused step kernel; only for the compiled laws (``Law.MINMAX`` and ``Law.GRADIENT``)."""
         if dt != self._hold_dt:
             self._set_hold(float(dt))
         return self._step_args
@@ -304,7 +304,7 @@ class AdaptiveEstimator:
         # everything estimator_step needs after (field, measured): live arrays, updated in place
         self._step_args = (bank._magnetization, bank._field, *bank._params, bank.grid, self._theta, self._f_hat,
                            self._yhat, self._y, phi_matrix, hold0, hold1, weight, self._tuning_row, self._vector,
-                           self._eps, self._dead_zone_offset, self._gamma, self._gain, self._mode, float(dt),
+                           self._eps, self._dead_zone_offset, self._gamma, self._gain, int(self.law), float(dt),
                            self._lo, self._hi, self._slope, self._curvature, self._ytilde, self._y_eps, self._sat,
                            self._sign, self._nu, self._phi)
 
@@ -381,13 +381,17 @@ class MinMaxEstimator(AdaptiveEstimator):
 
     Scalar (``FirstOrderPlant``), with ``s = sat(ytilde/eps)``::
 
-        yhat' = -lam*(yhat - eps*s) + nu*(f(thetahat) - nu_star*s)
-        thetahat' = -gamma*y_eps*nu*phi_star,   y_eps = ytilde - eps*s  (dead zone)
+        yhat' = -lam*(yhat - eps*s) + nu*(f(thetahat) - nu_star*s)        (14)
+        (nu_star, phi_star): the min-max problem                          (15)
+        thetahat' = -gamma*y_eps*nu*phi_star,   y_eps = ytilde - eps*s    (16)  (dead zone)
 
     Vector (``LumpedPlant``)::
 
-        yhat' = A*yhat + B*(f(thetahat) - a_star*sat(y_eps/eps)),  y_eps = B^T P ytilde
-        thetahat' = -gamma*y_eps*phi_star
+        yhat' = A*yhat + B*(f(thetahat) - a_star*sat(y_eps/eps)),  y_eps = B^T P ytilde   (24)
+        thetahat' = -gamma*y_eps*phi_star, (a_star, phi_star) of the min-max problem       (25)
+
+    The law itself is :func:`~._kernels.minmax_law` (``Law.MINMAX``) followed by
+    :func:`~._kernels.adaptation_step`.
 
     (nu_star, phi_star) / (a_star, phi_star) solve the min-max problem (15) on the bank
     in closed form (lower convex / upper concave envelope, eq. (15)), with the sign of
@@ -396,7 +400,7 @@ class MinMaxEstimator(AdaptiveEstimator):
     """
 
     name = "minmax"
-    _mode = 0
+    law = Law.MINMAX
 
 
 class GradientEstimator(AdaptiveEstimator):
@@ -409,7 +413,7 @@ class GradientEstimator(AdaptiveEstimator):
     """
 
     name = "gradient"
-    _mode = 1
+    law = Law.GRADIENT
 
 
 class MultipleModelEstimator(AdaptiveEstimator):
@@ -437,7 +441,7 @@ class MultipleModelEstimator(AdaptiveEstimator):
     """
 
     name = "multiple_model"
-    _mode = 2
+    law = Law.HELD
 
     def __init__(self, config: EstimatorConfig, n_systems: int = 1, memory_s: float = 1.0):
         if not (np.isfinite(memory_s) and memory_s > 0):
@@ -502,5 +506,5 @@ def make_estimator(name: str, config: EstimatorConfig, n_systems: int = 1, **opt
     return cls(config, n_systems, **options)
 
 
-__all__ = ["AdaptiveEstimator", "ESTIMATORS", "GradientEstimator", "MinMaxEstimator",
+__all__ = ["AdaptiveEstimator", "ESTIMATORS", "GradientEstimator", "Law", "MinMaxEstimator",
            "MultipleModelEstimator", "hold_matrices", "make_estimator"]
