@@ -120,6 +120,8 @@ EFFECT_SPECS = {spec.name: spec for spec in (
     EffectSpec("field_bias", True, False, True, "unrecorded DC field offset H0"),
     EffectSpec("anhysteretic_shape", True, False, True, "Langevin instead of Ising anhysteretic curve"),
     EffectSpec("delta_e", True, True, False, "Delta-E effect: khat*(1 + beta*(M/Ms)^2)"),
+    EffectSpec("small_loop", True, False, True,
+               "Rayleigh region: reversible wall bowing adds chi_rev*(1 - (M/Ms)^2) to dM/dH"),
     EffectSpec("sensor_nonlinearity", False, False, False, "cubic sensor gain on each output sensor"),
     EffectSpec("amplifier_saturation", False, False, True,
                "current amplifier soft-saturates; the recorded field is the commanded one"),
@@ -139,7 +141,9 @@ class Material:
 
     a : A/m, anhysteretic shape;  k : A/m, pinning;  alpha : 1, mean-field coupling
     (He = H + alpha*M);  Ms : A/m, saturation magnetization;  c : 1, reversibility;
-    curve : "ising" (Man = Ms tanh(He/a)) or "langevin" (Man = Ms (coth(He/a) - a/He)).
+    curve : "ising" (Man = Ms tanh(He/a)) or "langevin" (Man = Ms (coth(He/a) - a/He));
+    chi_rev : 1, reversible low-field (Rayleigh) susceptibility of bowing walls, which has
+    nothing left to bow at saturation: dM/dH gains chi_rev*(1 - (M/Ms)^2) (0: plain (6)).
     """
 
     a: float
@@ -148,6 +152,7 @@ class Material:
     Ms: float
     c: float
     curve: str = "ising"
+    chi_rev: float = 0.0
 
     @property
     def slope_factor(self) -> float:
@@ -188,7 +193,8 @@ class Material:
         return out
 
     def as_dict(self) -> dict:
-        return dict(a=self.a, k=self.k, alpha=self.alpha, Ms=self.Ms, c=self.c, curve=self.curve, rho=self.rho)
+        return dict(a=self.a, k=self.k, alpha=self.alpha, Ms=self.Ms, c=self.c, curve=self.curve, rho=self.rho,
+                    chi_rev=self.chi_rev)
 
 
 @dataclass(frozen=True)
@@ -462,7 +468,7 @@ def anhysteretic(x: float, curve: str) -> tuple[float, float]:
 
 
 def hysteresis_slope(H: float, M: float, delta: float, a: float, k: float, alpha: float, Ms: float, c: float,
-                     curve: str = "ising") -> float:
+                     curve: str = "ising", chi_rev: float = 0.0) -> float:
     """dM/dH (1) of eq. (6) at applied field ``H`` (A/m), magnetization ``M`` (A/m) and
     direction ``delta`` (+1 rising, -1 falling field)::
 
@@ -471,7 +477,8 @@ def hysteresis_slope(H: float, M: float, delta: float, a: float, k: float, alpha
     with ``He = H + alpha*M`` and ``alphahat = alpha/(1 - c)``. The irreversible term is
     written as ``(1-c)*(Man-M)/((1-c)*k*delta - alpha*(Man-M))`` (the same for c < 1, and 0
     at c = 1); it is switched off (dhat = 0) unless M lags Man in the direction of travel and
-    its denominator has delta's sign.
+    its denominator has delta's sign. ``chi_rev`` (Material) adds the Rayleigh-region bowing
+    ``chi_rev*(1 - (M/Ms)^2)``, floored at 0 beyond saturation.
     """
     x = (H + alpha * M) / a
     if curve == "ising" and -20.0 <= x <= 20.0:  # the common case, inlined (this is the hot loop)
@@ -487,7 +494,11 @@ def hysteresis_slope(H: float, M: float, delta: float, a: float, k: float, alpha
         denominator = (1.0 - c) * k * delta - alpha * gap
         if denominator * delta > 0.0:
             irreversible = (1.0 - c) * gap / denominator
-    return (irreversible + c * man_slope) / (1.0 - alpha * c * man_slope)
+    total = (irreversible + c * man_slope) / (1.0 - alpha * c * man_slope)
+    if chi_rev != 0.0:
+        bowing = 1.0 - (M / Ms) * (M / Ms)
+        total += chi_rev * bowing if bowing > 0.0 else 0.0
+    return total
 
 
 class _Spline:
@@ -562,7 +573,7 @@ def _integrate_dopri(spline, mat: Material, m0: float, scales, tol: float) -> np
     a field change ~k) gets as many as the error needs. With ``scales`` (thermal drift) a and
     Ms take their values at the interval's middle (they change by ~1e-5 per interval).
     """
-    a, k, alpha, Ms, c, curve = mat.a, mat.k, mat.alpha, mat.Ms, mat.c, mat.curve
+    a, k, alpha, Ms, c, curve, chi_rev = mat.a, mat.k, mat.alpha, mat.Ms, mat.c, mat.curve, mat.chi_rev
     slope = hysteresis_slope
     c0s, c1s, c2s, c3s = spline.c0, spline.c1, spline.c2, spline.c3
     dt = spline.dt
@@ -590,7 +601,7 @@ def _integrate_dopri(spline, mat: Material, m0: float, scales, tol: float) -> np
 
             def f(t, y, c0=c0, c1=c1, c2=c2, c3=c3, delta=delta, a=a, Ms=Ms):  # dM/dt, t into the interval
                 rate = (3.0 * c0 * t + 2.0 * c1) * t + c2
-                return slope(((c0 * t + c1) * t + c2) * t + c3, y, delta, a, k, alpha, Ms, c, curve) * rate
+                return slope(((c0 * t + c1) * t + c2) * t + c3, y, delta, a, k, alpha, Ms, c, curve, chi_rev) * rate
 
             k1 = f(s, m)
             while stop - s > 1e-12 * dt:
@@ -636,7 +647,7 @@ def _integrate_eddy(spline, mat: Material, m0: float, he0: float, k_e: float, sc
     agree in M to ``tol`` (A/m) and He moves by at most ``FIELD_RESOLUTION*min(k, a)`` (the
     field scale over which the hysteresis bends); the two half steps are kept. Over a step,
     H is the chord of the interval's cubic."""
-    a, k, alpha, Ms, c, curve = mat.a, mat.k, mat.alpha, mat.Ms, mat.c, mat.curve
+    a, k, alpha, Ms, c, curve, chi_rev = mat.a, mat.k, mat.alpha, mat.Ms, mat.c, mat.curve, mat.chi_rev
     slope = hysteresis_slope
     relax = _relax
     c0s, c1s, c2s, c3s = spline.c0, spline.c1, spline.c2, spline.c3
@@ -647,12 +658,12 @@ def _integrate_eddy(spline, mat: Material, m0: float, he0: float, k_e: float, sc
         rate = (H_end - H_start) / h
         gap = H_start - he
         delta = 1.0 if (gap > 0.0 or (gap == 0.0 and rate >= 0.0)) else -1.0
-        chi = slope(he, m, delta, a, k, alpha, Ms, c, curve)
+        chi = slope(he, m, delta, a, k, alpha, Ms, c, curve, chi_rev)
         he_half = relax(he, 0.5 * h, k_e * chi, H_start, rate)
         m_half = m + chi * (he_half - he)
         gap = H_start + 0.5 * h * rate - he_half
         delta = 1.0 if (gap > 0.0 or (gap == 0.0 and rate >= 0.0)) else -1.0
-        chi = slope(he_half, m_half, delta, a, k, alpha, Ms, c, curve)
+        chi = slope(he_half, m_half, delta, a, k, alpha, Ms, c, curve, chi_rev)
         he_new = relax(he, h, k_e * chi, H_start, rate)
         return m + chi * (he_new - he), he_new
 
@@ -710,7 +721,7 @@ def initial_magnetization(H0: float, material: Material) -> float:
     m = material
 
     def rhs(H, y):
-        return [hysteresis_slope(H, y[0], delta, m.a, m.k, m.alpha, m.Ms, m.c, m.curve)]
+        return [hysteresis_slope(H, y[0], delta, m.a, m.k, m.alpha, m.Ms, m.c, m.curve, m.chi_rev)]
 
     sol = solve_ivp(rhs, (0.0, H0), [0.0], method="LSODA", rtol=1e-10, atol=1e-8 * m.Ms,
                     max_step=min(abs(H0), m.k, m.a) / 20)
@@ -830,6 +841,8 @@ def _draw_effect(name: str, base: BaseDraw, reference: dict) -> EffectDraw:
     * field_bias: H0 = +-(5-20 %) of the amplitude (knob: fraction, cap 0.6);
     * anhysteretic_shape: Langevin with a/3 (same initial slope Ms/a), alpha unchanged (no knob);
     * delta_e: beta 0.3-1.0 (knob: beta, cap 3);
+    * small_loop: chi_rev 40-80 % of the anhysteretic's initial slope Ms*slope_factor/a, the span
+      of the fits to the measured ferrite loops (knob: chi_rev, cap 1.5x the slope);
     * sensor_nonlinearity: each sensor y -> y_r + s*(v + gamma*v^3), v = (y - y_r)/s with s the
       half range, y_r within +-30 % of the mid-range, |gamma| 0.04-0.15 (knob: scale, cap 5);
     * amplifier_saturation: H_true = H/(1 + |H/H_sat|^p)^(1/p), H_sat = max|H|/(1 + overdrive),
@@ -868,6 +881,9 @@ def _draw_effect(name: str, base: BaseDraw, reference: dict) -> EffectDraw:
         return EffectDraw(name, (("a_langevin", mat.a / 3.0),))
     if name == "delta_e":
         return EffectDraw(name, (("beta", rng.uniform(0.3, 1.0)),), "beta", 3.0)
+    if name == "small_loop":
+        initial_slope = mat.Ms * mat.slope_factor / mat.a
+        return EffectDraw(name, (("chi_rev", rng.uniform(0.4, 0.8) * initial_slope),), "chi_rev", 1.5 * initial_slope)
     if name == "sensor_nonlinearity":
         values = []
         for ch in ("m", "x"):
@@ -919,6 +935,8 @@ def _forward(base: BaseDraw, eff: EffectDraw, time, field, reference=None, cache
             materials = [replace(mat, a=eff["a_langevin"], curve="langevin")]
         elif name == "two_phase_rod":
             materials = [mat, _second_material(mat, eff)]
+        elif name == "small_loop":
+            materials = [replace(mat, chi_rev=eff["chi_rev"])]
         cache = {} if cache is None else cache
         phases = []
         for material in materials:

@@ -15,8 +15,8 @@ on the first half and holding out the second half, and again on a re-sampled cop
 (``data/real/gd-temperature``) are played in order of temperature, -38 to +15 C, with the
 temperature left out: a real record whose concealed effect (warming) is known.
 
-    .venv/bin/python experiments/real_loops.py                       # the full study, shipped data
-    .venv/bin/python experiments/real_loops.py --data DIR --json S.json   # score your own loops
+    .venv/bin/python -m experiments.real_loops                       # the full study, shipped data
+    .venv/bin/python -m experiments.real_loops --data DIR --json S.json   # score your own loops
 
 The variant (anhysteretic curve) is chosen on a held-out segment of the fitted loop, never
 on the fitted samples or on the other amplitudes.
@@ -33,7 +33,9 @@ import numpy as np
 import scipy.io
 
 from hyst_gym.diagnose import Recording, diagnose, write_json, write_plots
-from hyst_gym.diagnose.core import calibrate, physical_params
+from hyst_gym.diagnose.core import calibrate, fit_candidate
+from hyst_gym.diagnose.fit import local_fit
+from hyst_gym.diagnose.report import physical_params
 from hyst_gym.diagnose.model import Structure, noise_level
 
 MU0 = 4e-7 * np.pi
@@ -139,7 +141,29 @@ def nrmse_of_b(recording, predicted_m, start, stop):
 SELECTION_SEGMENT = (0.15, 0.40)
 
 
+#: Model variants fitted to the largest loop: both anhysteretic curves, each with model (6) alone
+#: and with the physics layer's small-loop extension (reversible low-field susceptibility chi_r).
+VARIANTS = tuple((curve, extension) for curve in ("langevin", "ising") for extension in (None, "small_loop"))
+REPORTED = ("a", "k", "alpha", "Ms", "c", "chi_r")
+
+
+def variant_name(curve, extension):
+    return curve if extension is None else f"{curve} + {extension}"
+
+
+def _predict(fit, H, B, label):
+    """The fitted model driven by one measured loop (warm-up cycle, then the scored cycle)."""
+    other = loop_recording([(H, B)], label)
+    model = fit.model.__class__(other, fit.model.structure, fit.model.parameters, float(np.ptp(other.field)) / 2000)
+    return other, model.magnetization([fit.values])[:, 0]
+
+
 def holdout_study(stem, folder=DATA, materials=MATERIALS):
+    """Fit every variant on the largest loop (a segment of it held out), predict the others.
+
+    Returns the rows (one per variant), the chosen row -- the lowest RMSE on the held-out segment
+    of the fitted loop, never the fitted samples nor the other amplitudes -- the loops, their
+    order (largest first) and the fits by variant name."""
     loops = load_loops(stem, folder)
     order = np.argsort([-np.max(np.abs(h)) for h, _ in loops])
     fitted = loops[order[0]]
@@ -149,55 +173,84 @@ def holdout_study(stem, folder=DATA, materials=MATERIALS):
     segment = np.zeros(rec.size, bool)
     segment[n + int(SELECTION_SEGMENT[0] * n):n + int(SELECTION_SEGMENT[1] * n)] = True
     weights = {"magnetization": noise_level(rec.magnetization)}
-    results = []
-    for curve in ("langevin", "ising"):
+    step = float(np.ptp(rec.field)) / 2000
+    results, fits, base_seconds, bases = [], {}, {}, {}
+    for curve, extension in VARIANTS:
         started = time.perf_counter()
-        fit = calibrate(rec, Structure("none", curve), weights, scored & ~segment, float(np.ptp(rec.field)) / 2000)
-        seconds = time.perf_counter() - started
+        if extension is None:
+            fit = calibrate(rec, Structure("none", curve), weights, scored & ~segment, step)
+        else:  # the extension's fit starts from the base fit of the same curve and adds its own search
+            fit = fit_candidate(rec, bases[curve], extension, weights, scored & ~segment, step)
+        fit, good, starts = grid_refits(fit, rec, weights, scored & ~segment)
+        if extension is None:
+            bases[curve] = fit
+        seconds = time.perf_counter() - started + (base_seconds.get(curve, 0.0) if extension else 0.0)
+        base_seconds.setdefault(curve, seconds)
+        name = variant_name(curve, extension)
+        fits[name] = fit
         m = fit.model.magnetization([fit.values])[:, 0]
         segment_error = float(np.sqrt(np.mean((m[segment] - rec.magnetization[segment]) ** 2)))
-        row = {"material": materials[stem], "curve": curve, "fit_seconds": seconds,
+        row = {"material": materials[stem], "curve": curve, "variant": name, "fit_seconds": seconds,
                "selection_segment_rmse_A_per_m": segment_error,
-               "params": {k: v for k, v in physical_params(fit).items() if k in ("a", "k", "alpha", "Ms", "c")},
-               "uncertainties": {k: v for k, v in fit.uncertainties.items() if k in ("a", "k", "rho", "Ms", "c")},
+               "params": {k: v for k, v in physical_params(fit).items() if k in REPORTED},
+               "uncertainties": {k: v for k, v in fit.uncertainties.items() if k in REPORTED + ("rho",)},
                "at_bound": [name for name, p in fit.model.parameters.items() if p.free and
                             min(abs(fit.values[name] - p.lower), abs(p.upper - fit.values[name]))
                             < 1e-3 * (p.upper - p.lower)]}
-        scores = {}
-        for j in order:
-            H, B = loops[j]
-            other = loop_recording([(H, B)], f"{stem} loop {j}")
-            model = fit.model.__class__(other, fit.model.structure, fit.model.parameters,
-                                        float(np.ptp(other.field)) / 2000)
-            m = model.magnetization([fit.values])[:, 0]
-            scores[f"{np.max(np.abs(H)):.3g} A/m"] = nrmse_of_b(other, m, H.size, 2 * H.size)
-        row["nrmse_B"] = scores
+        row["nrmse_B"] = {f"{np.max(np.abs(loops[j][0])):.3g} A/m":
+                          nrmse_of_b(*_predict(fit, *loops[j], f"{stem} loop {j}"), loops[j][0].size,
+                                     2 * loops[j][0].size)
+                          for j in order}
+        row["prediction_spread"] = prediction_spread(good, starts, loops, order, stem)
         results.append(row)
-    # the variant is chosen on the held-out segment of the fitted loop
     best = min(results, key=lambda r: r["selection_segment_rmse_A_per_m"])
-    return results, best, loops, order
+    return results, best, loops, order, fits
 
 
-def plot_holdout(stem, best, loops, order):
+#: Fits whose fitted-loop sum of squares is within this factor of the best count as equally good.
+EQUALLY_GOOD = 1.25
+
+
+def grid_refits(fit, rec, weights, fit_mask):
+    """Local fits from a grid of starts that put the low-field slope into c and k, or (with the
+    small-loop extension) into chi_r: the calibration's Sobol search keeps only a few starts and
+    can settle in the wrong basin. Returns the lowest-SSE fit and those equally good."""
+    h_max = float(np.max(np.abs(rec.field)))
+    peak = float(np.max(np.abs(rec.magnetization)))
+    small_loop = "chi_r" in fit.values
+    starts = [dict(fit.values, a=a * h_max, k=k * h_max, c=c, rho=0.0, Ms=1.2 * peak,
+                   **({"chi_r": chi * peak / h_max} if small_loop else {}))
+              for a in (0.1, 0.3, 1.0) for k in (0.03, 0.1) for c in (0.05, 0.4)
+              for chi in ((0.3,) if small_loop else (None,))]
+    fits = [fit] + [local_fit(fit.model, weights, fit_mask, start, max_nfev=80) for start in starts]
+    best = min(fits, key=lambda f: f.sse)
+    return best, [f for f in fits if f.sse <= EQUALLY_GOOD * best.sse], len(fits)
+
+
+def prediction_spread(good, starts, loops, order, stem):
+    """The range of predicted NRMSE per loop over fits the fitted loop cannot tell apart."""
+    spread = {}
+    for j in order[1:]:
+        H, B = loops[j]
+        predicted = [nrmse_of_b(*_predict(f, H, B, f"{stem} loop {j}"), H.size, 2 * H.size) for f in good]
+        spread[f"{np.max(np.abs(H)):.3g} A/m"] = [min(predicted), max(predicted)]
+    return {"fits": len(good), "starts": starts, "nrmse_range": spread}
+
+
+def plot_holdout(stem, best, loops, order, fit):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from hyst_gym.diagnose.model import Model, base_parameters
-    p = best["params"]
     fig, ax = plt.subplots(figsize=(6, 4.5))
     for j in order:
         H, B = loops[j]
-        rec = loop_recording([(H, B)], "plot")
-        s = Structure("none", best["curve"])
-        model = Model(rec, s, base_parameters(rec, s), float(np.ptp(H)) / 2000)
-        values = dict(model.values(), a=p["a"], k=p["k"], Ms=p["Ms"], c=p["c"],
-                      rho=p["alpha"] * p["Ms"] / p["a"] * (1 / 3 if best["curve"] == "langevin" else 1))
-        m = model.magnetization([values])[:, 0][H.size:]
+        _, m = _predict(fit, H, B, "plot")
         ax.plot(H, B, "k.", ms=2)
-        ax.plot(H, MU0 * (H + m), lw=1, label=f"{np.max(np.abs(H)):.3g} A/m: "
+        ax.plot(H, MU0 * (H + m[H.size:]), lw=1, label=f"{np.max(np.abs(H)):.3g} A/m: "
                 f"{100 * best['nrmse_B'][f'{np.max(np.abs(H)):.3g} A/m']:.1f} %")
     ax.set_xlabel("H (A/m)"); ax.set_ylabel("B (T)")
-    ax.set_title(f"{MATERIALS[stem]}: fitted on the largest loop ({best['curve']}); dots = measured")
+    ax.set_title(f"{MATERIALS.get(stem, stem)}: fitted on the largest loop ({best['variant']}); dots = measured",
+                 fontsize=9)
     ax.legend(fontsize=8, title="NRMSE of B")
     fig.tight_layout()
     FIGURES.mkdir(parents=True, exist_ok=True)
@@ -208,12 +261,12 @@ def plot_holdout(stem, best, loops, order):
 def scores_json(stem, results, best):
     """The per-material entry of ``--json``: fitted loop, other amplitudes, time, chosen variant."""
     scores = list(best["nrmse_B"].items())
-    return {"variant": best["curve"], "chosen_by": "held-out segment of the fitted loop",
+    return {"variant": best["variant"], "chosen_by": "held-out segment of the fitted loop",
             "fitted_loop_nrmse": scores[0][1],
             "loops": [{"peak_field": float(name.split()[0]), "nrmse": value} for name, value in scores],
             "fit_seconds": best["fit_seconds"], "params": best["params"], "uncertainties": best["uncertainties"],
-            "at_bound": best["at_bound"],
-            "variants": {r["curve"]: {"selection_segment_rmse_A_per_m": r["selection_segment_rmse_A_per_m"],
+            "at_bound": best["at_bound"], "prediction_spread": best.get("prediction_spread"),
+            "variants": {r["variant"]: {"selection_segment_rmse_A_per_m": r["selection_segment_rmse_A_per_m"],
                                       "nrmse_B": r["nrmse_B"]} for r in results}}
 
 
@@ -222,9 +275,9 @@ def score_folder(folder: Path, json_path: Path) -> int:
     materials = find_materials(folder)
     out = {}
     for stem in materials:
-        results, best, _, _ = holdout_study(stem, folder, materials)
+        results, best, _, _, _ = holdout_study(stem, folder, materials)
         out[materials[stem]] = scores_json(stem, results, best)
-        print(f"{materials[stem]}: {best['curve']}, fitted loop {100 * out[materials[stem]]['fitted_loop_nrmse']:.1f} %, "
+        print(f"{materials[stem]}: {best['variant']}, fitted loop {100 * out[materials[stem]]['fitted_loop_nrmse']:.1f} %, "
               + ", ".join(f"{l['peak_field']:g} A/m {100 * l['nrmse']:.1f} %" for l in out[materials[stem]]['loops'][1:]))
     json_path.parent.mkdir(parents=True, exist_ok=True)
     json_path.write_text(json.dumps(out, indent=2, default=float) + "\n")
@@ -250,8 +303,8 @@ def main(argv=None):
     RESULTS.mkdir(parents=True, exist_ok=True)
     summary = {}
     for stem in MATERIALS:
-        results, best, loops, order = holdout_study(stem)
-        plot_holdout(stem, best, loops, order)
+        results, best, loops, order, fits = holdout_study(stem)
+        plot_holdout(stem, best, loops, order, fits[best["variant"]])
         rec = loop_recording([loops[j] for j in order], f"{MATERIALS[stem]}, all loops, largest first")
         stability, report = stability_checks(rec, anhysteretic=best["curve"], holdout=0.5)
         write_json(report, RESULTS / f"real_{stem}_report.json")
@@ -278,21 +331,29 @@ def main(argv=None):
     return 0
 
 
+def _spread_cell(row) -> str:
+    spread = row.get("prediction_spread")
+    if not spread:
+        return "–"
+    ranges = ", ".join(f"{100 * lo:.1f}–{100 * hi:.1f} % ({k.split()[0]})" for k, (lo, hi) in spread["nrmse_range"].items())
+    return f"{ranges}; {spread['fits']} of {spread['starts']} fits"
+
+
 def loops_table(summary) -> str:
     """Markdown table of the amplitude hold-out, both variants, the chosen one in bold."""
-    lines = ["| material | curve | selection segment RMSE (A/m) | fitted loop | other amplitudes (A/m) | fit time |"
-             " at a bound |", "|---|---|---|---|---|---|---|"]
+    lines = ["| material | variant | selection segment RMSE (A/m) | fitted loop | other amplitudes (A/m) | fit time |"
+             " at a bound | equally good fits predict |", "|---|---|---|---|---|---|---|---|"]
     for stem, entry in summary.items():
         if "holdout" not in entry:
             continue
         chosen = entry["scores"]["variant"]
         for row in entry["holdout"]:
             scores = list(row["nrmse_B"].items())
-            curve = f"**{row['curve']}**" if row["curve"] == chosen else row["curve"]
+            curve = f"**{row['variant']}**" if row["variant"] == chosen else row["variant"]
             others = ", ".join(f"{100 * v:.1f} % ({k.split()[0]})" for k, v in scores[1:])
             lines.append(f"| {row['material']} | {curve} | {row['selection_segment_rmse_A_per_m']:.3g} | "
                          f"{100 * scores[0][1]:.1f} % | {others} | {row['fit_seconds']:.1f} s | "
-                         f"{', '.join(row['at_bound']) or '–'} |")
+                         f"{', '.join(row['at_bound']) or '–'} | {_spread_cell(row)} |")
     return "\n".join(lines)
 
 

@@ -201,6 +201,12 @@ def fit_candidate(recording, base: FitResult, effect: str, weights, fit_mask, ma
         names = [n for n in HYSTERESIS_NAMES if model.parameters[n].free]
         starts = [start] + global_search(model, weights, fit_mask, names, n_points=64, keep=2,
                                          linear_outputs=_linear_pair(model))
+    elif effect == "small_loop":
+        # chi_r trades off against c and k (both add low-field slope), so the base fit's (c, k) is
+        # a poor start: search the hysteresis parameters and chi_r together, as for the base fit
+        names = [n for n in HYSTERESIS_NAMES if model.parameters[n].free] + ["chi_r"]
+        starts = _effect_starts(model, effect, base_values) + global_search(
+            model, weights, fit_mask, names, n_points=128, keep=3, linear_outputs=_linear_pair(model))
     elif effect == "quadratic_magnetostriction" and "zetahat" in base_values:
         # from the base fit's mechanics and from the initial (paper) ones: a base fit that the
         # missing M^2 law has dragged far off is a poor place to start
@@ -259,6 +265,8 @@ def _effect_starts(model, effect, base_values):
         return [dict(start, k_e=p["k_e"].upper * 1e-2)]
     if effect == "thermal_drift":
         return [dict(start, heating=p["heating"].upper * 0.05, tau_th=p["tau_th"].value)]
+    if effect == "small_loop":
+        return [dict(start, chi_r=p["chi_r"].upper * f) for f in (0.02, 0.2)]
     return [start]
 
 

@@ -29,6 +29,7 @@ RATE_EFFECTS = ("eddy_current", "sensor_lag", "rod_dynamics")
 _RECORD_M = "record the magnetization (a pick-up coil) beside the displacement"
 _BROADBAND = "excite above the first resonance (a broadband or chirp drive up to the sensor's Nyquist frequency)"
 _TEMPERATURE = "record the coil or rod temperature"
+_AMPLITUDES = "record loops at several amplitudes, down to a tenth of the largest (small loops show the low-field susceptibility)"
 _SLOW = "repeat the record at a lower and a higher drive frequency (rate effects scale with frequency)"
 
 CONFUSABLE = {
@@ -36,8 +37,14 @@ CONFUSABLE = {
         frozenset({"eddy_current", "sensor_lag"}): _SLOW + "; a sensor lag is a fixed delay, eddy loss widens the loop",
         frozenset({"field_bias", "anhysteretic_shape"}): "record a loop symmetric about H = 0 at two amplitudes",
         frozenset({"thermal_drift", "anhysteretic_shape"}): _TEMPERATURE,
+        frozenset({"small_loop", "anhysteretic_shape"}): _AMPLITUDES,
+        frozenset({"small_loop", "field_bias"}): _AMPLITUDES,
     },
     "displacement": {
+        frozenset({"small_loop", "anhysteretic_shape"}): _AMPLITUDES + ", and " + _RECORD_M,
+        frozenset({"small_loop", "quadratic_magnetostriction"}): _RECORD_M,
+        frozenset({"small_loop", "delta_e"}): _RECORD_M,
+        frozenset({"small_loop", "field_bias"}): _RECORD_M,
         frozenset({"sensor_lag", "rod_dynamics"}): _BROADBAND + ", or " + _RECORD_M,
         frozenset({"sensor_lag", "eddy_current"}): _RECORD_M,
         frozenset({"rod_dynamics", "eddy_current"}): _RECORD_M,
@@ -53,6 +60,7 @@ CONFUSABLE = {
     "both": {
         frozenset({"sensor_lag", "rod_dynamics"}): _BROADBAND,
         frozenset({"delta_e", "rod_dynamics"}): _BROADBAND + " at two bias fields",
+        frozenset({"small_loop", "anhysteretic_shape"}): _AMPLITUDES,
         frozenset({"thermal_drift", "anhysteretic_shape"}): _TEMPERATURE,
     },
 }

@@ -11,6 +11,8 @@ parameter is zero:
   ``dHe = (H_new + H0 - He_old)/(1 + k_e*chi/dt)`` with ``chi`` the secant
   susceptibility (one predictor with the tangent, one corrector with the secant), which is
   unconditionally stable (the denominator is >= 1 because chi >= 0);
+* ``small_loop``: the reversible low-field susceptibility chi_r of the physics layer's
+  small-loop extension (:data:`hyst_gym.physics.hysteresis.SMALL_LOOP_EXTENSION`);
 * ``thermal_drift``: a lumped coil temperature rise ``theta`` (K) obeys
   ``theta' = q*H^2 - theta/tau`` (Joule heating ~ I^2 ~ H^2, eq. (11)), integrated
   exactly with H^2 held at its step mean, and ``a(T) = a*(T_amb + theta)/T_amb`` (4)
@@ -31,12 +33,13 @@ import numpy as np
 from numba import njit
 
 from ..physics.constants import ROOM_TEMPERATURE
-from ..physics.hysteresis import _midpoint_substep, advance_shared, magnetization_slope, substep_count
+from ..physics.hysteresis import (_midpoint_substep, advance_shared, advance_shared_small_loop, magnetization_slope,
+                                  substep_count)
 from ..physics.linear_system import first_order_hold, lti_step
 from ..physics.thermal import a_law_kernel, mean_square_linear_kernel
 
 #: Columns of the per-member magnetic parameter matrix used by :func:`simulate_members`.
-MAGNETIC_COLUMNS = ("a", "k", "alpha", "Ms", "c", "H0", "k_e", "heating", "tau_th", "beta_Ms")
+MAGNETIC_COLUMNS = ("a", "k", "alpha", "Ms", "c", "H0", "k_e", "heating", "tau_th", "beta_Ms", "chi_r")
 AMBIENT_TEMPERATURE = ROOM_TEMPERATURE  # K, reference temperature of the fitted a (eq. 4)
 
 
@@ -74,7 +77,9 @@ def simulate_members(time, field, params, kind, max_field_step, ambient):
             continue
         members = np.zeros(n_members, dtype=np.bool_)
         for j in range(b, n_members):
-            members[j] = (not done[j]) and params[j, 6] == 0.0 and params[j, 7] == 0.0 and params[j, 5] == params[b, 5]
+            # same bias H0, and the small-loop extension (chi_r, column 10) on in all or in none
+            members[j] = ((not done[j]) and params[j, 6] == 0.0 and params[j, 7] == 0.0 and params[j, 5] == params[b, 5]
+                          and (params[j, 10] == 0.0) == (params[b, 10] == 0.0))
         group = np.flatnonzero(members)
         _simulate_shared_field(field + params[b, 5], params[group], kind, max_field_step, out, group)
         done[group] = True
@@ -92,12 +97,16 @@ def _simulate_shared_field(field, params, kind, max_field_step, out, columns):
     alpha = np.ascontiguousarray(params[:, 2])
     Ms = np.ascontiguousarray(params[:, 3])
     c = np.ascontiguousarray(params[:, 4])
+    chi_r = np.ascontiguousarray(params[:, 10])
+    small_loop = chi_r[0] != 0.0  # the group is all-on or all-off (simulate_members)
     m = np.zeros(params.shape[0])
-    advance_shared(m, 0.0, field[0], a, k, alpha, Ms, c, kind, max_field_step)
-    for i in range(columns.shape[0]):
-        out[0, columns[i]] = m[i]
-    for t in range(1, field.shape[0]):
-        advance_shared(m, field[t - 1], field[t], a, k, alpha, Ms, c, kind, max_field_step)
+    previous = 0.0
+    for t in range(field.shape[0]):
+        if small_loop:
+            advance_shared_small_loop(m, previous, field[t], a, k, alpha, Ms, c, chi_r, kind, max_field_step)
+        else:
+            advance_shared(m, previous, field[t], a, k, alpha, Ms, c, kind, max_field_step)
+        previous = field[t]
         for i in range(columns.shape[0]):
             out[t, columns[i]] = m[i]
 
@@ -105,6 +114,9 @@ def _simulate_shared_field(field, params, kind, max_field_step, out, columns):
 @njit(cache=True)
 def _simulate_one(time, field, row, kind, max_field_step, ambient, out, b):
     """One extended member (eddy currents or heating), sample after sample, into ``out[:, b]``."""
+    if row[10] != 0.0:
+        # extensions are nested one at a time: small loops never meet eddy currents or heating here
+        raise ValueError("the small-loop extension (chi_r) does not combine with eddy currents or heating")
     n_samples = time.shape[0]
     a0 = row[0]
     k = row[1]

@@ -160,11 +160,16 @@ def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: flo
     zetahat = PAPER_ZETAHAT * rng.uniform(0.8, 1.25)
     noise_rel = rng.uniform(0.5e-3, 1.5e-3)
     effect_rng = np.random.default_rng(np.random.SeedSequence([int(seed), 6, 1]))
-    row = dict(a=a, k=k, alpha=alpha, Ms=Ms, c=c, H0=0.0, k_e=0.0, heating=0.0, tau_th=1.0, beta_Ms=0.0)
+    row = dict(a=a, k=k, alpha=alpha, Ms=Ms, c=c, H0=0.0, k_e=0.0, heating=0.0, tau_th=1.0, beta_Ms=0.0, chi_r=0.0)
     duration = fine_time[-1]
     kind = 1 if curve == "langevin" else 0
     if effect == "field_bias":
         row["H0"] = strength * effect_rng.uniform(0.1, 0.2) * amplitude * effect_rng.choice([-1, 1])
+    if effect == "small_loop":
+        # a reversible low-field susceptibility of 40-80 % of the anhysteretic's initial slope Ms/a:
+        # the span of the fits to the measured ferrite loops (experiments/real_loops.py); much less
+        # is absorbed by the base model's own reversible term c*Man'
+        row["chi_r"] = strength * effect_rng.uniform(0.4, 0.8) * Ms / a
     if effect == "eddy_current":
         plain = simulate_members(fine_time, field, np.array([[row[c_] for c_ in MAGNETIC_COLUMNS]]), kind, 25.0,
                                  AMBIENT_TEMPERATURE)[:, 0]

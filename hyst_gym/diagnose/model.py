@@ -55,7 +55,7 @@ from .recording import Recording
 
 TRANSDUCERS = ("none", "first_order", "lumped", "lumped_nonlinear", "fem")
 EFFECTS = ("thermal_drift", "eddy_current", "quadratic_magnetostriction", "rod_dynamics",
-           "sensor_lag", "field_bias", "anhysteretic_shape", "delta_e")
+           "sensor_lag", "field_bias", "anhysteretic_shape", "delta_e", "small_loop")
 #: Parameters each extension adds (anhysteretic_shape adds none: it swaps the curve).
 EFFECT_PARAMETERS = {
     "field_bias": ("H0",),
@@ -67,6 +67,7 @@ EFFECT_PARAMETERS = {
     "rod_dynamics": ("f2", "damping2", "g2"),
     "anhysteretic_shape": (),
     "delta_e": ("delta_e",),
+    "small_loop": ("chi_r",),
 }
 #: Paper values of the lumped coefficients (13).
 PAPER_CHAT = 7.8899e3   # 1/s
@@ -186,7 +187,8 @@ class Model:
         alpha = values["rho"] * a / (Ms * slope_factor(curve))
         row = dict(a=a, k=values["k"], alpha=alpha, Ms=Ms, c=values["c"], H0=values.get("H0", 0.0),
                    k_e=values.get("k_e", 0.0), heating=values.get("heating", 0.0),
-                   tau_th=values.get("tau_th", 1.0), beta_Ms=values.get("beta_Ms", 0.0))
+                   tau_th=values.get("tau_th", 1.0), beta_Ms=values.get("beta_Ms", 0.0),
+                   chi_r=values.get("chi_r", 0.0))
         return np.array([row[c] for c in MAGNETIC_COLUMNS])
 
     def magnetization(self, values_list) -> np.ndarray:
@@ -383,6 +385,11 @@ def extension_parameters(recording: Recording, structure: Structure, base_values
     elif effect == "delta_e":
         out["delta_e"] = Parameter("delta_e", 0.0, -0.5, 3.0, "1 (relative stiffness change, M = 0 to Ms)",
                                    scale=0.1)
+    elif effect == "small_loop":
+        # a reversible susceptibility up to ten times the record's largest secant M/H
+        secant = base_values.get("Ms", PAPER_MS) / h_max
+        out["chi_r"] = Parameter("chi_r", 0.0, 0.0, 10.0 * secant, "1 (reversible low-field susceptibility)",
+                                 scale=0.1 * secant)
     elif effect == "rod_dynamics":
         f1 = np.sqrt(base_values.get("khat", PAPER_KHAT)) / (2 * np.pi)
         nyquist = 0.5 / dt
@@ -395,7 +402,7 @@ def extension_parameters(recording: Recording, structure: Structure, base_values
 def applicable_effects(recording: Recording, structure: Structure) -> list[str]:
     """Vocabulary effects that can show in this recording under this base structure."""
     has_x = "displacement" in recording.channels and structure.transducer not in ("none",)
-    effects = ["thermal_drift", "eddy_current", "sensor_lag", "field_bias", "anhysteretic_shape"]
+    effects = ["thermal_drift", "eddy_current", "sensor_lag", "field_bias", "anhysteretic_shape", "small_loop"]
     if has_x and structure.transducer != "lumped_nonlinear":
         effects.insert(2, "quadratic_magnetostriction")
     if has_x and structure.transducer in ("lumped", "lumped_nonlinear"):

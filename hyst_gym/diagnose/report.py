@@ -21,9 +21,11 @@ EFFECT_WORDS = {
     "field_bias": "an unrecorded DC bias field H0 (e.g. a permanent magnet) added to H",
     "anhysteretic_shape": "the other anhysteretic curve (Ising (2) <-> Langevin (3))",
     "delta_e": "the Delta-E effect: the transducer's stiffness changes with its magnetization",
+    "small_loop": "small-loop (Rayleigh) behaviour: a reversible low-field susceptibility chi_r that (6) lacks, "
+                  "fading at saturation",
 }
 UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "tau_th": "s", "beta_Ms": "1/K", "tau_m": "s", "tau_x": "s",
-         "zeta_q": "m/s^2 per (A/m)^2", "f2": "Hz", "damping2": "", "g2": "", "delta_e": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "",
+         "zeta_q": "m/s^2 per (A/m)^2", "f2": "Hz", "damping2": "", "g2": "", "delta_e": "", "chi_r": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "",
          "alpha": ""}
 
 

@@ -49,6 +49,22 @@ def test_implausible_fit_is_not_named_and_the_report_says_why():
     assert decide(candidates, 1.2, ("magnetization",)).verdict == "none"
 
 
+def test_none_is_never_as_confident_as_a_positive_finding():
+    """A base model within noise and no candidate near acceptance: the margins are both 1, and
+    `none` still reports only NONE_CONFIDENCE_CEILING (absence of evidence); a named effect with
+    the same kind of margin reports the full margin."""
+    from hyst_gym.diagnose.decide import NONE_CONFIDENCE_CEILING
+
+    quiet = decide([_Candidate("field_bias", 1.0, base=1.0)], 1.0, ("magnetization",))
+    assert quiet.verdict == "none" and quiet.confidence == pytest.approx(NONE_CONFIDENCE_CEILING)
+    assert NONE_CONFIDENCE_CEILING < 0.8
+    # halfway to both bars: half the ceiling
+    halfway = decide([_Candidate("field_bias", 1.25 * 0.9, base=1.25)], 1.25, ("magnetization",))
+    assert halfway.verdict == "none" and halfway.confidence == pytest.approx(NONE_CONFIDENCE_CEILING * 0.5)
+    named = decide([_Candidate("sensor_lag", 0.5)], 10.0, ("magnetization",))
+    assert named.verdict == "sensor_lag" and named.confidence > 0.9
+
+
 def test_partial_explanation_is_not_a_name():
     # 30 % better but still 7 noise units off: neither halved nor within 2 noise units
     decision = decide([_Candidate("thermal_drift", 7.0)], 10.0, ("magnetization",))

@@ -24,11 +24,26 @@ def test_plain_members_match_physics_kernel():
     """With every extension off, the extended kernel is the physics model (6) driven from 0."""
     time = np.linspace(0, 1, 801)
     field = 8e4 * np.sin(2 * np.pi * 2 * time) * np.exp(-time)
-    row = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=0, heating=0, tau_th=1, beta_Ms=0)
+    row = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=0, heating=0, tau_th=1, beta_Ms=0, chi_r=0)
     ours = simulate_members(time, field, np.array([[row[c] for c in MAGNETIC_COLUMNS]]), 0, 10.0, AMBIENT_TEMPERATURE)[:, 0]
     ref = simulate_magnetization(np.concatenate([[0.0], field]), max_field_step=10.0, a=6000, k=1500,
                                  alpha=-0.05, Ms=8e5, c=0.2)[1:]
     assert np.max(np.abs(ours - ref)) < 1e-9 * 8e5
+
+
+def test_small_loop_members_match_the_physics_extension_and_share_the_bank_with_plain_ones():
+    """Members with chi_r run through the physics layer's small-loop kernel, plain members through
+    (6): both give the physics layer's numbers when simulated together."""
+    time = np.linspace(0, 1, 801)
+    field = 8e4 * np.sin(2 * np.pi * 2 * time) * np.exp(-time)
+    plain = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=0, heating=0, tau_th=1, beta_Ms=0, chi_r=0)
+    rows = np.array([[dict(plain, chi_r=chi)[c] for c in MAGNETIC_COLUMNS] for chi in (0.0, 30.0, 60.0)])
+    ours = simulate_members(time, field, rows, 0, 10.0, AMBIENT_TEMPERATURE)
+    for column, chi in enumerate((0.0, 30.0, 60.0)):
+        ref = simulate_magnetization(np.concatenate([[0.0], field]), max_field_step=10.0, a=6000, k=1500,
+                                     alpha=-0.05, Ms=8e5, c=0.2, chi_r=chi)[1:]
+        assert np.max(np.abs(ours[:, column] - ref)) < 1e-9 * 8e5
+    assert np.max(np.abs(ours[:, 2] - ours[:, 0])) > 1e-2 * 8e5  # and chi_r matters
 
 
 def test_eddy_current_converges_and_lags():
@@ -36,7 +51,7 @@ def test_eddy_current_converges_and_lags():
     def run(n, k_e):
         time = np.linspace(0, 0.05, n)
         field = 6e4 * np.sin(2 * np.pi * 40 * time)
-        row = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=k_e, heating=0, tau_th=1, beta_Ms=0)
+        row = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=k_e, heating=0, tau_th=1, beta_Ms=0, chi_r=0)
         return simulate_members(time, field, np.array([[row[c] for c in MAGNETIC_COLUMNS]]), 0, 10.0,
                                 AMBIENT_TEMPERATURE)[:, 0]
     coarse, fine, finest = run(501, 2e-5)[::1], run(2001, 2e-5)[::4], run(8001, 2e-5)[::16]
@@ -45,7 +60,7 @@ def test_eddy_current_converges_and_lags():
 
 
 @pytest.mark.parametrize("effect", ["field_bias", "eddy_current", "thermal_drift", "sensor_lag",
-                                    "quadratic_magnetostriction", "rod_dynamics"])
+                                    "quadratic_magnetostriction", "rod_dynamics", "small_loop"])
 def test_extensions_reduce_to_base_when_switched_off(effect):
     rec, _, truth = make_recording_with_truth("none", 3, n_samples=600)
     base = Model(rec, Structure(), base_parameters(rec, Structure()), 100.0)
@@ -54,7 +69,7 @@ def test_extensions_reduce_to_base_when_switched_off(effect):
     extra = extension_parameters(rec, structure, values)
     ext = Model(rec, structure, {**base.parameters, **extra}, 100.0)
     off = dict(values, **{n: 0.0 for n in extra if n in ("H0", "k_e", "heating", "tau_m", "tau_x", "zeta_q", "g2",
-                                                        "beta_Ms")})
+                                                        "beta_Ms", "chi_r")})
     off.update({n: extra[n].value for n in extra if n not in off})
     a, b = base.predict(values), ext.predict(off)
     for ch in a:

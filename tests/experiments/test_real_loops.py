@@ -16,13 +16,34 @@ def test_scores_a_folder_of_loop_pairs(tmp_path):
         shutil.copy(SHIPPED / f"{prefix}_MnZn_ferrite.mat", folder / f"{prefix}_my_sample.mat")
     assert real_loops.main(["--data", str(folder), "--json", str(tmp_path / "s.json")]) == 0
     entry = json.loads((tmp_path / "s.json").read_text())["my sample"]
-    assert entry["variant"] in ("ising", "langevin") and entry["chosen_by"].startswith("held-out segment")
+    assert entry["variant"] in {real_loops.variant_name(*v) for v in real_loops.VARIANTS}
+    assert entry["chosen_by"].startswith("held-out segment") and set(entry["variants"]) == {
+        real_loops.variant_name(*v) for v in real_loops.VARIANTS}
     peaks = [loop["peak_field"] for loop in entry["loops"]]
     assert peaks == sorted(peaks, reverse=True) and len(peaks) == 4 and 75 < peaks[0] < 85
     # the fitted (largest) loop is matched closely; the smaller ones are predicted, not fitted
     assert entry["fitted_loop_nrmse"] == entry["loops"][0]["nrmse"] < 0.02
     assert all(0 < loop["nrmse"] < 0.2 for loop in entry["loops"])
-    assert entry["fit_seconds"] > 0 and set(entry["params"]) == {"a", "k", "alpha", "Ms", "c"}
+    assert entry["fit_seconds"] > 0 and {"a", "k", "alpha", "Ms", "c"} <= set(entry["params"])
+    assert ("chi_r" in entry["params"]) == entry["variant"].endswith("small_loop")
+    # the equally good fits bracket the reported prediction of every smaller loop
+    for loop in entry["loops"][1:]:
+        low, high = entry["prediction_spread"]["nrmse_range"][f"{loop['peak_field']:.3g} A/m"]
+        assert low <= loop["nrmse"] + 1e-12 and loop["nrmse"] <= high + 1e-12
+
+
+def test_small_loop_variant_predicts_the_small_hp_ferrite_loops_better_than_model_6(tmp_path):
+    """The amplitude hold-out on the shipped HP ferrite: fitted on the 80 A/m loop only, the
+    small-loop extension predicts the 6 A/m loop at least twice as well as (6) with either curve."""
+    folder = tmp_path / "hp"
+    folder.mkdir()
+    for prefix in ("B", "H"):
+        shutil.copy(SHIPPED / f"{prefix}_MnZn_HP_ferrite.mat", folder / f"{prefix}_hp.mat")
+    real_loops.main(["--data", str(folder), "--json", str(tmp_path / "s.json")])
+    variants = json.loads((tmp_path / "s.json").read_text())["hp"]["variants"]
+    smallest = {name: list(v["nrmse_B"].values())[-1] for name, v in variants.items()}
+    assert min(smallest["ising + small_loop"], smallest["langevin + small_loop"]) < 0.5 * min(
+        smallest["ising"], smallest["langevin"])
 
 
 def test_bad_folders_are_one_line_errors(tmp_path, capsys):
