@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from ..estimation import as_kernel_tuples
 from ..estimation.bank import ModelBank
 from ..estimation.config import EstimatorConfig
 from ..estimation.config import LumpedPlant
@@ -310,8 +311,9 @@ class BatchSimulator:
                              self._noise_sigma, self._noisy, config.temperature_sensor)
         value, slope, second = self._pe
         if estimator is not None:
-            value_hat, curvature = estimator._f_hat, estimator._curvature
-            tuning, gap, eps = estimator._y_eps, estimator._nu, self._eps
+            state = estimator.kernel_state  # live arrays, updated in place by the estimator
+            value_hat, curvature = state.f_hat, state.curvature
+            tuning, gap, eps = state.y_eps, state.nu, self._eps
         else:
             value_hat, curvature = np.zeros(n), np.zeros(n)
             tuning = gap = self.a_estimate
@@ -326,7 +328,7 @@ class BatchSimulator:
             self._out["reward"], self._out["terminated"], self._out["truncated"], self._out["error"],
             self._out["penalty"], self._out["stroke"],
             self.info_array, self._rows, self.field, self.magnetization, config.dt, self.bank.grid,
-            self.bank._magnetization, value_hat, curvature, self._theta, value, slope, second, self._pe_gain,
+            self.bank.kernel_state.magnetization, value_hat, curvature, self._theta, value, slope, second, self._pe_gain,
             self._obs, self.measured, self.scales, config.field_limit, config.episode_steps, tuning, eps, gap,
             self._gap_norm, TUNING_DECADES, estimator is not None, self.measured_temperature,
             config.thermal.reference_temperature, TEMPERATURE_SCALE, config.temperature_sensor,
@@ -334,8 +336,10 @@ class BatchSimulator:
         # Excitation with a compiled estimator law: the whole step is one kernel call.
         self._fused = uses_fused_step(self.mode, config.estimator)
         if self._fused:
-            self._fused_args = (*self._plant_state, *self._plant_args, *estimator._kernel_args(config.dt),
-                                *self._finish_args)
+            estimator_tuples = as_kernel_tuples(estimator.bank.kernel_state, estimator.bank.kernel_params,
+                                                estimator.kernel_state, estimator.observer_params,
+                                                estimator.hold_params(config.dt))
+            self._fused_args = (*self._plant_state, *self._plant_args, *estimator_tuples, *self._finish_args)
 
     # ------------------------------------------------------------------ seeding and reset
 

@@ -20,7 +20,7 @@ import sys
 import numpy as np
 from numba import njit
 
-from ..estimation._kernels import estimator_step, interpolate_bank
+from ..estimation._kernels import EstimatorState, estimator_step, interpolate_bank
 from ..physics.hysteresis import advance_each
 from ..physics.linear_system import lti_step
 from ..physics.thermal import a_law_kernel, mean_square_linear_kernel, temperature_step_kernel
@@ -235,10 +235,7 @@ def excitation_step(actions, tolerance, clipped, command, active,
                     temperature_sensor, k, alpha, Ms, c, kind, max_field_step, field_limit, max_change,
                     phi, gamma0, gamma1, quadratic, drive_gain, output_index, velocity_index,
                     drifting, dt, decay, power_per_h2, thermal_resistance, tau, a_reference, t_reference,
-                    bank_values, bank_field, bank_a, bank_k, bank_alpha, bank_Ms, bank_c, bank_kind, bank_step, grid,
-                    theta, f_hat, yhat, y, transition, hold0, hold1, weight, tuning_row, vector, eps, offset,
-                    gamma, gain, law, est_dt, lo, hi, out_slope, out_curvature, out_ytilde, out_y_eps, out_sat,
-                    out_sign, out_nu, out_phi,
+                    bank, bank_params, estimator, observer, hold,
                     agent_estimate, estimate_column, a_estimate, theta_min, theta_max, theta_width,
                     f_a_true, f_temperature, f_state, f_output_index, output_offset, f_steps, truncation_steps,
                     temperature_limit, temperature_band, stroke_limit, stroke_band, penalty_weight,
@@ -252,7 +249,9 @@ def excitation_step(actions, tolerance, clipped, command, active,
     estimator's :func:`~hyst_gym.estimation._kernels.estimator_step` -> :func:`finish_step`.
 
     Argument groups are, in order, those of the four kernels (the ``f_`` names of the
-    last group repeat arrays passed before). Returns 0, 1 (an action is not finite or
+    last group repeat arrays passed before); the estimator's are its named state
+    (:class:`~hyst_gym.estimation._kernels.BankState`, ``BankParams``, ``EstimatorState``,
+    ``ObserverParams``, ``HoldParams``) as plain tuples (``as_kernel_tuples``). Returns 0, 1 (an action is not finite or
     outside [-1, 1]; nothing changed) or 2 (the estimator got a non-finite input).
     """
     if not clip_actions(actions, tolerance, clipped):
@@ -264,11 +263,9 @@ def excitation_step(actions, tolerance, clipped, command, active,
                noisy, temperature_sensor, k, alpha, Ms, c, kind, max_field_step, field_limit, max_change,
                phi, gamma0, gamma1, quadratic, drive_gain, output_index, velocity_index,
                drifting, dt, decay, power_per_h2, thermal_resistance, tau, a_reference, t_reference)
-    if estimator_step(field, measured, bank_values, bank_field, bank_a, bank_k, bank_alpha, bank_Ms, bank_c,
-                      bank_kind, bank_step, grid, theta, f_hat, yhat, y, transition, hold0, hold1, weight,
-                      tuning_row, vector, eps, offset, gamma, gain, law, est_dt, lo, hi, out_slope, out_curvature,
-                      out_ytilde, out_y_eps, out_sat, out_sign, out_nu, out_phi):
+    if estimator_step(field, measured, bank, bank_params, estimator, observer, hold):
         return 2
+    theta = EstimatorState(*estimator).theta
     for i in range(theta.shape[0]):
         a_estimate[i] = theta[i]
     finish_step(clipped, agent_estimate, estimate_column, a_estimate, theta_min, theta_max, theta_width,

@@ -9,6 +9,9 @@ Public API
     batched estimators sharing ``reset`` / ``update(field, measured_output, dt)``;
 :class:`Law`
     the parameter law each estimator runs (min-max (16)/(25), gradient, held);
+:class:`BankState`, :class:`BankParams`, :class:`EstimatorState`, :class:`ObserverParams`, :class:`HoldParams`
+    the named state of the compiled kernels (an estimator's ``kernel_state``,
+    ``observer_params``, ``hold_params(dt)``, its bank's ``kernel_state``, ``kernel_params``);
 :class:`ModelBank`
     the E x G hysteresis bank;
 :func:`minmax_solution`, :func:`envelopes`
@@ -20,6 +23,8 @@ Public API
     estimator converge (:mod:`hyst_gym.estimation.convergence`).
 """
 
+from ._kernels import (BankParams, BankState, EstimatorState, HoldParams, ObserverParams,
+                       as_kernel_tuples)
 from .bank import ModelBank
 from .config import EstimatorConfig, FirstOrderPlant, LumpedPlant
 from .convergence import error_bound, first_passage, sensitivity_curve, sensitivity_envelope
@@ -29,7 +34,8 @@ from .minmax import envelopes, minmax_solution
 from .pe import PEMonitor
 
 __all__ = [
-    "AdaptiveEstimator", "ESTIMATORS", "EstimatorConfig", "FirstOrderPlant", "GradientEstimator", "Law", "LumpedPlant",
+    "AdaptiveEstimator", "BankParams", "BankState", "ESTIMATORS", "EstimatorState", "HoldParams", "ObserverParams",
+    "as_kernel_tuples", "EstimatorConfig", "FirstOrderPlant", "GradientEstimator", "Law", "LumpedPlant",
     "MinMaxEstimator", "ModelBank", "MultipleModelEstimator", "PEMonitor", "envelopes", "error_bound",
     "first_passage", "hold_matrices", "make_estimator", "minmax_solution", "sensitivity_curve", "sensitivity_envelope",
 ]

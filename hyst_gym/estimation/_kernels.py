@@ -20,6 +20,7 @@ All three then take the same explicit Euler step of the adaptation, :func:`adapt
 
 from __future__ import annotations
 
+from collections import namedtuple
 from enum import IntEnum
 
 import numpy as np
@@ -43,20 +44,57 @@ class Law(IntEnum):
 _MINMAX = int(Law.MINMAX)
 _GRADIENT = int(Law.GRADIENT)
 
+# Named state and parameters of the kernels (namedtuples of arrays and numbers: numba compiles
+# and caches them, and a field is read by name, so two arrays of one type cannot be swapped).
+# The kernels called from Python once per control step (estimator_step here, the env's step
+# kernels) take them as plain tuples, made by tuple(named) (:func:`as_kernel_tuples`), and name
+# them again on entry: numba's dispatcher types a plain tuple in C but a namedtuple in Python,
+# about twice the cost per field (+4-6 us per call of estimator_step at E = 1, measured), and
+# renaming costs nothing in compiled code.
+
+#: An E x G model bank: ``magnetization`` (E, G) A/m, and ``field`` (E,) A/m, the field each
+#: row has reached. Changed in place.
+BankState = namedtuple("BankState", ["magnetization", "field"])
+#: The bank's fixed data: ``grid`` (G,) over Theta, A/m; the hysteresis parameters (G,) of its
+#: models (``a`` = grid), ``kind`` (anhysteretic curve) and ``max_field_step`` (A/m).
+BankParams = namedtuple("BankParams", ["grid", "a", "k", "alpha", "Ms", "c", "kind", "max_field_step"])
+#: An estimator's live state, changed in place: thetahat ``theta`` (E,), f(thetahat) ``f_hat``,
+#: the observer ``yhat`` and the measured ``y`` (E, n), and the quantities derived at thetahat
+#: (slope and curvature of f, ytilde (E, n), y_eps, sat, sign, min-max gap nu and slope phi, (E,)).
+EstimatorState = namedtuple("EstimatorState", ["theta", "f_hat", "yhat", "y", "slope", "curvature", "ytilde",
+                                               "y_eps", "sat", "sign", "nu", "phi"])
+#: The law and its constants: ``law`` (a :class:`Law` value), ``vector`` (lumped plant (24)),
+#: ``tuning_row`` B^T P (n,), dead-zone width ``eps``, dead-zone offset (A/m), ``gamma``, plant
+#: ``gain`` nu, and Theta = [``lo``, ``hi``].
+ObserverParams = namedtuple("ObserverParams", ["law", "vector", "tuning_row", "eps", "offset", "gamma", "gain",
+                                               "lo", "hi"])
+#: The exact discretization of the observer over one control period ``dt`` (s): ``transition``
+#: (n, n), ``hold0``/``hold1`` (n,) of the increment form, and ``weight``, how much one A/m of
+#: held feedback moves the tuning error over the step.
+HoldParams = namedtuple("HoldParams", ["dt", "transition", "hold0", "hold1", "weight"])
+
+
+def as_kernel_tuples(*structures) -> tuple:
+    """The named structures as plain tuples, in their field order, for a kernel that names
+    them again on entry (see above)."""
+    return tuple(tuple(structure) for structure in structures)
+
 
 @njit(cache=True)
-def advance_bank(magnetization, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step):
-    """Move each system's bank (row of ``magnetization``, shape (E, G)) along its own field.
+def advance_bank(bank, field_to, params):
+    """Move each system's bank (:class:`BankState`) along its own field, in place.
 
-    Row ``e`` goes from ``field_from[e]`` to ``field_to[e]`` (A/m) through the physics
-    kernel :func:`advance_shared`, so a bank node equals a single-model run bit for bit.
-    Returns the number of model substeps taken.
+    Row ``e`` goes from ``bank.field[e]`` to ``field_to[e]`` (A/m) through the physics
+    kernel :func:`advance_shared`, so a bank node equals a single-model run bit for bit;
+    ``bank.field`` then holds ``field_to``. Returns the number of model substeps taken.
     """
     total = 0
+    magnetization = bank.magnetization
     G = magnetization.shape[1]
     for e in range(magnetization.shape[0]):
-        total += G * advance_shared(magnetization[e], field_from[e], field_to[e],
-                                    a, k, alpha, Ms, c, kind, max_field_step)
+        total += G * advance_shared(magnetization[e], bank.field[e], field_to[e], params.a, params.k,
+                                    params.alpha, params.Ms, params.c, params.kind, params.max_field_step)
+        bank.field[e] = field_to[e]
     return total
 
 
@@ -298,16 +336,20 @@ def adaptation_step(theta_hat, dt, gamma, gain, y_eps, phi, lo, hi):
 
 
 @njit(cache=True)
-def observer_step(grid, values, theta, f_hat, yhat, measured, transition, hold0, hold1, weight, tuning_row,
-                  vector, eps, offset, gamma, gain, law, dt, lo, hi,
-                  out_slope, out_curvature, out_ytilde, out_y_eps, out_sat, out_sign, out_nu, out_phi):
-    """One control step of every system after the bank has moved (see AdaptiveEstimator.update).
+def observer_step(grid, values, measured, state, observer, hold):
+    """One control step of every system after the bank (``values`` (E, G)) has moved (see
+    AdaptiveEstimator.update).
 
-    In place: ``theta`` (thetahat_k -> thetahat_k+1), ``f_hat`` (f(thetahat_k) on the old
-    bank -> f(thetahat_k+1) on the new one), ``yhat`` and the ``out_*`` arrays. ``law``: a
-    :class:`Law` value (min-max (16)/(25), gradient, or held). ``tuning_row`` is
-    B^T P (vector) and unused for the scalar plant.
+    In place, in ``state`` (:class:`EstimatorState`): ``theta`` (thetahat_k -> thetahat_k+1),
+    ``f_hat`` (f(thetahat_k) on the old bank -> f(thetahat_k+1) on the new one), ``yhat`` and
+    the quantities at thetahat (:func:`refresh`). ``observer.law``: a :class:`Law` value
+    (min-max (16)/(25), gradient, or held). ``observer.tuning_row`` is B^T P (vector) and
+    unused for the scalar plant.
     """
+    theta, f_hat, yhat = state.theta, state.f_hat, state.yhat
+    transition, hold0, hold1, weight = hold.transition, hold.hold0, hold.hold1, hold.weight
+    law, vector, tuning_row, eps, offset = (observer.law, observer.vector, observer.tuning_row, observer.eps,
+                                            observer.offset)
     E, n = yhat.shape
     G = grid.shape[0]
     xs = np.empty(G + 1)
@@ -344,15 +386,20 @@ def observer_step(grid, values, theta, f_hat, yhat, measured, transition, hold0,
             new_state[i] = free[i] - applied * hold0[i] + measured[e, i]
             yhat[e, i] = new_state[i]
         y_eps = z if vector else z - eps * sat
-        theta[e] = adaptation_step(theta[e], dt, gamma, gain, y_eps, phi, lo, hi)
-    refresh(grid, values, theta, yhat, measured, tuning_row, vector, eps, f_hat, out_slope, out_curvature,
-            out_ytilde, out_y_eps, out_sat, out_sign, out_nu, out_phi)
+        theta[e] = adaptation_step(theta[e], hold.dt, observer.gamma, observer.gain, y_eps, phi, observer.lo,
+                                   observer.hi)
+    refresh(grid, values, measured, state, observer)
 
 
 @njit(cache=True)
-def refresh(grid, values, theta, yhat, measured, tuning_row, vector, eps, out_value, out_slope, out_curvature,
-            out_ytilde, out_y_eps, out_sat, out_sign, out_nu, out_phi):
-    """Bank values at thetahat, ytilde, y_eps, sat, sign and the min-max (15) at that sign."""
+def refresh(grid, values, measured, state, observer):
+    """Into ``state``: bank values at thetahat (``f_hat``, ``slope``, ``curvature``), ytilde,
+    y_eps, sat, sign and the min-max (15) at that sign (``nu``, ``phi``)."""
+    theta, yhat = state.theta, state.yhat
+    out_value, out_slope, out_curvature, out_ytilde, out_y_eps = (state.f_hat, state.slope, state.curvature,
+                                                                  state.ytilde, state.y_eps)
+    out_sat, out_sign, out_nu, out_phi = state.sat, state.sign, state.nu, state.phi
+    tuning_row, vector, eps = observer.tuning_row, observer.vector, observer.eps
     E, n = yhat.shape
     G = grid.shape[0]
     xs = np.empty(G + 1)
@@ -388,16 +435,17 @@ def refresh(grid, values, theta, yhat, measured, tuning_row, vector, eps, out_va
 
 
 @njit(cache=True)
-def estimator_step(field, measured, magnetization, bank_field, a, k, alpha, Ms, c, kind, max_field_step, grid,
-                   theta, f_hat, yhat, y, transition, hold0, hold1, weight, tuning_row, vector, eps, offset, gamma,
-                   gain, law, dt, lo, hi, out_slope, out_curvature, out_ytilde, out_y_eps, out_sat, out_sign,
-                   out_nu, out_phi):
+def estimator_step(field, measured, bank, bank_params, state, observer, hold):
     """One whole control step of every system: bank advance, then :func:`observer_step`.
 
-    ``field`` (E,) and ``measured`` (E, n) are the values at the end of the step. Returns
+    ``field`` (E,) and ``measured`` (E, n) are the values at the end of the step; ``bank``
+    (:class:`BankState`) and ``state`` (:class:`EstimatorState`) change in place. Returns
     0, or (before touching any state) 1 if ``field`` or 2 if ``measured`` is not finite.
-    ``law`` :attr:`Law.MINMAX` or :attr:`Law.GRADIENT` only: :attr:`Law.HELD` runs in Python.
+    The five structures come as plain tuples (:func:`as_kernel_tuples`). ``observer.law`` :attr:`Law.MINMAX` or :attr:`Law.GRADIENT` only: :attr:`Law.HELD` runs in Python.
     """
+    bank, bank_params, state = BankState(*bank), BankParams(*bank_params), EstimatorState(*state)
+    observer, hold = ObserverParams(*observer), HoldParams(*hold)
+    y = state.y
     E, n = y.shape
     for e in range(E):
         if not np.isfinite(field[e]):
@@ -405,12 +453,8 @@ def estimator_step(field, measured, magnetization, bank_field, a, k, alpha, Ms, 
         for i in range(n):
             if not np.isfinite(measured[e, i]):
                 return 2
-    advance_bank(magnetization, bank_field, field, a, k, alpha, Ms, c, kind, max_field_step)
-    for e in range(E):
-        bank_field[e] = field[e]
-    observer_step(grid, magnetization, theta, f_hat, yhat, measured, transition, hold0, hold1, weight, tuning_row,
-                  vector, eps, offset, gamma, gain, law, dt, lo, hi, out_slope, out_curvature, out_ytilde,
-                  out_y_eps, out_sat, out_sign, out_nu, out_phi)
+    advance_bank(bank, field, bank_params)
+    observer_step(bank_params.grid, bank.magnetization, measured, state, observer, hold)
     for e in range(E):
         for i in range(n):
             y[e, i] = measured[e, i]

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..physics.hysteresis import HysteresisBatch
-from ._kernels import advance_bank, interpolate_bank
+from ._kernels import BankParams, BankState, advance_bank, interpolate_bank
 from .config import EstimatorConfig
 
 
@@ -35,10 +35,13 @@ class ModelBank:
         self.grid = config.theta_grid
         self.grid.setflags(write=False)
         params = HysteresisBatch.grid(config.hysteresis, self.grid)
-        self._params = (params.a, params.k, params.alpha, params.Ms, params.c, params.kind,
-                        float(config.max_field_step))
         self._magnetization = np.zeros((self.n_systems, config.grid_size))
         self._field = np.zeros(self.n_systems)
+        #: what the compiled kernels read and change (live arrays): see :class:`~._kernels.BankState`
+        self.kernel_state = BankState(self._magnetization, self._field)
+        #: the fixed data of the kernels: see :class:`~._kernels.BankParams`
+        self.kernel_params = BankParams(self.grid, params.a, params.k, params.alpha, params.Ms, params.c,
+                                        params.kind, float(config.max_field_step))
 
     @property
     def magnetization(self) -> np.ndarray:
@@ -61,10 +64,7 @@ class ModelBank:
 
     def advance(self, field: np.ndarray) -> int:
         """Drive each system's bank to its new field (A/m, shape (E,)); returns model substeps."""
-        a, k, alpha, Ms, c, kind, step = self._params
-        done = advance_bank(self._magnetization, self._field, field, a, k, alpha, Ms, c, kind, step)
-        self._field[:] = field
-        return done
+        return advance_bank(self.kernel_state, field, self.kernel_params)
 
     def evaluate(self, theta, out_value=None, out_slope=None, out_curvature=None):
         """f, df/dtheta, d2f/dtheta2 at ``theta`` (A/m, shape (E,)); each (E,)."""

@@ -28,7 +28,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..physics.linear_system import hold_and_ramp
-from ._kernels import Law, estimator_step, minmax_batch, observer_step, pe_integrand_batch, refresh
+from ._kernels import (EstimatorState, HoldParams, Law, ObserverParams, as_kernel_tuples, estimator_step,
+                       minmax_batch, observer_step, pe_integrand_batch, refresh)
 from .bank import ModelBank, _readonly
 from .config import EstimatorConfig, FirstOrderPlant
 
@@ -90,6 +91,7 @@ class AdaptiveEstimator:
         self._hi = config.theta_max
         self._hold_dt = None
         self._hold = None
+        self._step_tuples = None
         self._theta = np.full(E, config.initial_estimate)
         self._yhat = np.zeros((E, self._n))
         self._y = np.zeros((E, self._n))
@@ -102,7 +104,13 @@ class AdaptiveEstimator:
         self._sign = np.ones(E)
         self._nu = np.zeros(E)
         self._phi = np.zeros(E)
-        self._step_args = None
+        #: what the compiled kernels read and change (live arrays): see :class:`~._kernels.EstimatorState`
+        self.kernel_state = EstimatorState(self._theta, self._f_hat, self._yhat, self._y, self._slope,
+                                           self._curvature, self._ytilde, self._y_eps, self._sat, self._sign,
+                                           self._nu, self._phi)
+        #: the law and its constants: see :class:`~._kernels.ObserverParams`
+        self.observer_params = ObserverParams(int(self.law), self._vector, self._tuning_row, self._eps,
+                                              self._dead_zone_offset, self._gamma, self._gain, self._lo, self._hi)
         self._a_estimate_view = _readonly(self._theta)
         self.reset()
 
@@ -255,7 +263,7 @@ class AdaptiveEstimator:
         # held (explicit) feedback chatters across the boundary layer as soon as
         # gain*dt exceeds eps, and the chatter biases thetahat (the two signs use
         # different phi). The parameter law then takes an Euler step with the new y_eps.
-        status = estimator_step(field, measured, *self._step_args)
+        status = estimator_step(field, measured, *self._step_tuples)
         if status:
             name = "field" if status == 1 else "measured_output"
             raise ValueError(f"{type(self).__name__}.update: {name} must be finite")
@@ -267,15 +275,11 @@ class AdaptiveEstimator:
             raise ValueError(f"{type(self).__name__}: field must be finite")
         if not np.all(np.isfinite(measured)):
             raise ValueError(f"{type(self).__name__}.update: measured_output must be finite")
-        phi_matrix, hold0, hold1, weight = self._hold
         measured = np.ascontiguousarray(measured)
         self._before_advance()
         self.bank.advance(field)
-        observer_step(self.bank.grid, self.bank._magnetization, self._theta, self._f_hat, self._yhat, measured,
-                      phi_matrix, hold0, hold1, weight, self._tuning_row, self._vector, self._eps,
-                      self._dead_zone_offset, self._gamma, self._gain, int(self.law), float(dt), self._lo, self._hi,
-                      self._slope, self._curvature, self._ytilde, self._y_eps, self._sat, self._sign,
-                      self._nu, self._phi)
+        observer_step(self.bank.grid, self.bank.kernel_state.magnetization, measured, self.kernel_state,
+                      self.observer_params, self._hold)
         self._y[...] = measured
         self._after_advance(measured, dt)
         self._theta[:] = self._next_theta(None, dt)
@@ -283,13 +287,13 @@ class AdaptiveEstimator:
 
     # ------------------------------------------------------------------ internals
 
-    def _kernel_args(self, dt: float) -> tuple:
-        """Arguments of :func:`~._kernels.estimator_step` after ``(field, measured)`` for
-        steps of ``dt`` s: live arrays (changed in place) and constants. For the env's
-        fused step kernel; only for the compiled laws (``Law.MINMAX`` and ``Law.GRADIENT``)."""
+    def hold_params(self, dt: float) -> HoldParams:
+        """The observer's exact discretization for control steps of ``dt`` s (see
+        :class:`~._kernels.HoldParams`): with :attr:`kernel_state`, :attr:`observer_params` and
+        the bank's, what :func:`~._kernels.estimator_step` takes (the env's fused step kernel)."""
         if dt != self._hold_dt:
             self._set_hold(float(dt))
-        return self._step_args
+        return self._hold
 
     def _set_hold(self, dt):
         phi_matrix, hold0, hold1 = hold_matrices(self._A, self._B, dt)
@@ -298,21 +302,15 @@ class AdaptiveEstimator:
         if not weight > 0:
             raise ValueError(f"{type(self).__name__}.update: dt = {dt!r} s is too long for this plant "
                              f"(B^T P G0 = {weight!r} <= 0); use a shorter control step")
-        self._hold = (phi_matrix, hold0, hold1, weight)
+        self._hold = HoldParams(float(dt), phi_matrix, hold0, hold1, weight)
         self._hold_dt = dt
-        bank = self.bank
-        # everything estimator_step needs after (field, measured): live arrays, updated in place
-        self._step_args = (bank._magnetization, bank._field, *bank._params, bank.grid, self._theta, self._f_hat,
-                           self._yhat, self._y, phi_matrix, hold0, hold1, weight, self._tuning_row, self._vector,
-                           self._eps, self._dead_zone_offset, self._gamma, self._gain, int(self.law), float(dt),
-                           self._lo, self._hi, self._slope, self._curvature, self._ytilde, self._y_eps, self._sat,
-                           self._sign, self._nu, self._phi)
+        # what estimator_step takes after (field, measured); the arrays are live, changed in place
+        self._step_tuples = as_kernel_tuples(self.bank.kernel_state, self.bank.kernel_params, self.kernel_state,
+                                             self.observer_params, self._hold)
 
     def _refresh(self):
         """Bank values at thetahat, errors and the min-max solution at the current time."""
-        refresh(self.bank.grid, self.bank._magnetization, self._theta, self._yhat, self._y, self._tuning_row,
-                self._vector, self._eps, self._f_hat, self._slope, self._curvature, self._ytilde, self._y_eps,
-                self._sat, self._sign, self._nu, self._phi)
+        refresh(self.bank.grid, self.bank.kernel_state.magnetization, self._y, self.kernel_state, self.observer_params)
 
     @property
     def _dead_zone_offset(self):
@@ -468,10 +466,10 @@ class MultipleModelEstimator(AdaptiveEstimator):
         self._nodes_start[...] = self.bank._magnetization
 
     def _after_advance(self, measured, dt):
-        phi_matrix, hold0, hold1, _ = self._hold
+        hold = self._hold
         nodes_end = self.bank._magnetization
-        self._node_output = (self._node_output @ phi_matrix.T + self._nodes_start[..., None] * hold0
-                             + (nodes_end - self._nodes_start)[..., None] * hold1)
+        self._node_output = (self._node_output @ hold.transition.T + self._nodes_start[..., None] * hold.hold0
+                             + (nodes_end - self._nodes_start)[..., None] * hold.hold1)
         residual = (self._node_output - measured.reshape(self.n_systems, 1, -1)) * self._weight
         forget = np.exp(-dt / self.memory_s)
         self._cost = forget * self._cost + (1.0 - forget) * np.sum(residual ** 2, axis=2)
