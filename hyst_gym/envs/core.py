@@ -32,7 +32,8 @@ from ..estimation.config import LumpedPlant
 from ..estimation.estimators import ESTIMATORS, Law, make_estimator
 from ..physics import FirstOrderPlant, LumpedLinear, LumpedNonlinear
 from .config import MECHANICAL_ESTIMATOR_GAMMA, EnvConfig
-from .kernels import (announce_compilation, clip_actions, excitation_step, fill_info, fill_observation, finish_step,
+from .kernels import (EnvParams, EstimateView, ObservationLayout, PlantParams, PlantState, ScoreParams, StepBuffers,
+                      announce_compilation, clip_actions, excitation_step, fill_info, fill_observation, finish_step,
                       plant_step)
 
 EXCITATION = "excitation"
@@ -273,18 +274,18 @@ class BatchSimulator:
         self._all_active = np.ones(n, dtype=bool)
         self._magnetization_prev = np.zeros(n)
         transducer = self.model
-        self._plant_args = (self._k, self._alpha, self._Ms, self._c, self._kind, config.max_field_step,
-                            config.field_limit, config.max_field_change, transducer.phi, transducer.gamma0,
-                            transducer.gamma1, transducer.drive == "quadratic", transducer.drive_gain,
-                            transducer.output_index,
-                            -1 if transducer.velocity_index is None or not config.is_mechanical
-                            else transducer.velocity_index,
-                            config.temperature_mode == "drifting", config.dt, self._decay, self._power_per_h2,
-                            thermal.thermal_resistance, thermal.time_constant, thermal.a_reference,
-                            thermal.reference_temperature)
-        self._score_args = (config.theta_width, config.temperature_limit, config.temperature_penalty_band,
-                            -1.0 if config.stroke_limit is None else config.stroke_limit,
-                            config.stroke_penalty_band, config.penalty_weight)
+        self._plant_params = PlantParams(
+            k=self._k, alpha=self._alpha, Ms=self._Ms, c=self._c, kind=self._kind,
+            max_field_step=config.max_field_step, field_limit=config.field_limit,
+            max_change=config.max_field_change, phi=transducer.phi, gamma0=transducer.gamma0,
+            gamma1=transducer.gamma1, quadratic=transducer.drive == "quadratic", drive_gain=transducer.drive_gain,
+            output_index=transducer.output_index,
+            velocity_index=(-1 if transducer.velocity_index is None or not config.is_mechanical
+                            else transducer.velocity_index),
+            drifting=config.temperature_mode == "drifting", dt=config.dt, decay=self._decay,
+            power_per_h2=self._power_per_h2, thermal_resistance=thermal.thermal_resistance,
+            tau=thermal.time_constant, a_reference=thermal.a_reference, t_reference=thermal.reference_temperature,
+            noise_sigma=self._noise_sigma, noisy=self._noisy, temperature_sensor=config.temperature_sensor)
         self._out = {"reward": np.zeros(n), "terminated": np.zeros(n, dtype=bool),
                      "truncated": np.zeros(n, dtype=bool), "error": np.zeros(n), "penalty": np.zeros(n),
                      "stroke": np.zeros(n)}
@@ -299,47 +300,64 @@ class BatchSimulator:
         self._build_kernel_args()
 
     def _build_kernel_args(self):
-        """Argument tuples of the compiled step kernels (live arrays, changed in place)."""
+        """The named state of the compiled step kernels (live arrays, changed in place), and
+        its plain-tuple form for the kernels called once per step."""
         config = self.config
         n = self.n
         estimator = self.estimator
         self._clipped = np.zeros((n, self.action_size))
         self._command = np.zeros(n)
-        self._plant_state = (self.field, self.magnetization, self._magnetization_prev, self.state,
-                             self._state_next, self.temperature, self.ambient0, self.drift_rate, self.steps,
-                             self.a_true, self.measured, self.measured_temperature, self._noise, self._noise_pos,
-                             self._noise_sigma, self._noisy, config.temperature_sensor)
+        self._plant = PlantState(
+            field=self.field, magnetization=self.magnetization, magnetization_prev=self._magnetization_prev,
+            state=self.state, state_next=self._state_next, temperature=self.temperature, ambient0=self.ambient0,
+            drift_rate=self.drift_rate, steps=self.steps, a_true=self.a_true, measured=self.measured,
+            measured_temperature=self.measured_temperature, noise=self._noise, noise_pos=self._noise_pos)
         value, slope, second = self._pe
         if estimator is not None:
             state = estimator.kernel_state  # live arrays, updated in place by the estimator
-            value_hat, curvature = state.f_hat, state.curvature
-            tuning, gap, eps = state.y_eps, state.nu, self._eps
+            self._view = EstimateView(a_estimate=self.a_estimate, value_hat=state.f_hat, curvature=state.curvature,
+                                      tuning=state.y_eps, gap=state.nu)
+            eps = self._eps
         else:
-            value_hat, curvature = np.zeros(n), np.zeros(n)
-            tuning = gap = self.a_estimate
+            # no tuning features without an estimator (layout.excitation is False); the agent's
+            # estimate fills f and its curvature from the bank
+            self._view = EstimateView(a_estimate=self.a_estimate, value_hat=np.zeros(n), curvature=np.zeros(n),
+                                      tuning=self.a_estimate, gap=self.a_estimate)
             eps = 1.0
-        stroke_limit = -1.0 if config.stroke_limit is None else config.stroke_limit
-        self._finish_args = (
-            estimator is None, 0 if self.mode == ESTIMATION else 1, self.a_estimate, config.theta_min,
-            config.theta_max, config.theta_width,
-            self.a_true, self.temperature, self.state, self.model.output_index, self.model.output_offset,
-            self.steps, self.truncation_steps, config.temperature_limit, config.temperature_penalty_band,
-            stroke_limit, config.stroke_penalty_band, config.penalty_weight,
-            self._out["reward"], self._out["terminated"], self._out["truncated"], self._out["error"],
-            self._out["penalty"], self._out["stroke"],
-            self.info_array, self._rows, self.field, self.magnetization, config.dt, self.bank.grid,
-            self.bank.kernel_state.magnetization, value_hat, curvature, self._theta, value, slope, second, self._pe_gain,
-            self._obs, self.measured, self.scales, config.field_limit, config.episode_steps, tuning, eps, gap,
-            self._gap_norm, TUNING_DECADES, estimator is not None, self.measured_temperature,
-            config.thermal.reference_temperature, TEMPERATURE_SCALE, config.temperature_sensor,
-            self.obs_low, self.obs_high)
+        self._score = ScoreParams(
+            truncation_steps=self.truncation_steps, theta_min=config.theta_min, theta_max=config.theta_max,
+            theta_width=config.theta_width, temperature_limit=config.temperature_limit,
+            temperature_band=config.temperature_penalty_band,
+            stroke_limit=-1.0 if config.stroke_limit is None else config.stroke_limit,
+            stroke_band=config.stroke_penalty_band, penalty_weight=config.penalty_weight,
+            output_index=self.model.output_index, output_offset=self.model.output_offset, dt=config.dt,
+            pe_gain=self._pe_gain, agent_estimate=estimator is None,
+            estimate_column=0 if self.mode == ESTIMATION else 1)
+        self._layout = ObservationLayout(
+            scales=self.scales, field_limit=config.field_limit, episode_steps=config.episode_steps,
+            theta_min=config.theta_min, theta_width=config.theta_width, eps=eps, gap_norm=self._gap_norm,
+            decades=TUNING_DECADES, excitation=estimator is not None,
+            t_reference=config.thermal.reference_temperature, temperature_scale=TEMPERATURE_SCALE,
+            temperature_sensor=config.temperature_sensor, low=self.obs_low, high=self.obs_high)
+        out = self._out
+        self._buffers = StepBuffers(
+            clipped=self._clipped, command=self._command, obs=self._obs, info=self.info_array, rows=self._rows,
+            reward=out["reward"], terminated=out["terminated"], truncated=out["truncated"], error=out["error"],
+            penalty=out["penalty"], stroke=out["stroke"], truth_clipped=self._theta, value_true=value,
+            slope_scratch=slope, second_scratch=second)
+        params = EnvParams(tolerance=ACTION_TOLERANCE, plant=self._plant_params, score=self._score,
+                           layout=self._layout)
+        # the plain-tuple forms (as_kernel_tuples) for plant_step, finish_step and excitation_step
+        self._plant_tuples = as_kernel_tuples(self._plant, self._plant_params)
+        self._finish_tuples = as_kernel_tuples(self._plant, self._view, self._buffers, self._score, self._layout,
+                                               self.bank.kernel_state, self.bank.kernel_params)
         # Excitation with a compiled estimator law: the whole step is one kernel call.
         self._fused = uses_fused_step(self.mode, config.estimator)
         if self._fused:
             estimator_tuples = as_kernel_tuples(estimator.bank.kernel_state, estimator.bank.kernel_params,
                                                 estimator.kernel_state, estimator.observer_params,
                                                 estimator.hold_params(config.dt))
-            self._fused_args = (*self._plant_state, *self._plant_args, *estimator_tuples, *self._finish_args)
+            self._fused_tuples = (*as_kernel_tuples(self._plant, self._view, self._buffers, params), estimator_tuples)
 
     # ------------------------------------------------------------------ seeding and reset
 
@@ -519,8 +537,7 @@ class BatchSimulator:
         if self._noisy and self._noise_pos.max() >= NOISE_BLOCK:
             self._refill_noise(np.flatnonzero((self._noise_pos >= NOISE_BLOCK) & active))
         if self._fused:
-            status = excitation_step(actions, ACTION_TOLERANCE, self._clipped, self._command, active,
-                                     *self._fused_args)
+            status = excitation_step(actions, active, *self._fused_tuples)
             if status == 1:
                 self.check_actions(actions)  # raises, naming the value
             if status == 2:
@@ -530,12 +547,12 @@ class BatchSimulator:
                 self.check_actions(actions)  # raises, naming the value
             command = (self.schedule(self.steps + 1) if self.mode == ESTIMATION
                        else self._clipped[:, 0] * config.field_limit)
-            plant_step(command, active, *self._plant_state, *self._plant_args)
+            plant_step(command, active, *self._plant_tuples)
             if self.estimator is not None:
                 self.a_estimate[:] = self.estimator.update(self.field, self.measured, config.dt)
             else:
                 self.bank.advance(self.field)
-            finish_step(self._clipped, *self._finish_args)
+            finish_step(*self._finish_tuples)
         self._obs_fresh = True
         if self.record:
             self._record(self._rows)
@@ -577,18 +594,7 @@ class BatchSimulator:
         return self._obs.copy()
 
     def _fill_observation(self):
-        config = self.config
-        estimator = self.estimator
-        if estimator is not None:
-            tuning, curvature, gap = estimator.tuning_error, estimator.curvature_sign, estimator.minmax_gap
-        else:
-            tuning = curvature = gap = self.a_estimate
-        fill_observation(self._obs, self.measured, self.scales, self.field, config.field_limit, self.steps,
-                         config.episode_steps, self.a_estimate, config.theta_min, config.theta_width,
-                         tuning, self._eps if estimator is not None else 1.0, curvature, gap, self._gap_norm,
-                         TUNING_DECADES, estimator is not None, self.measured_temperature,
-                         config.thermal.reference_temperature, TEMPERATURE_SCALE, config.temperature_sensor,
-                         self.obs_low, self.obs_high)
+        fill_observation(self._obs, self._plant, self._view, self._layout)
         self._obs_fresh = True
 
     def _fill_info(self, rows, penalty):
@@ -598,18 +604,12 @@ class BatchSimulator:
         np.clip(self.a_true, config.theta_min, config.theta_max, out=self._theta)
         value, slope, second = self._pe
         if self.estimator is not None:
-            curvature = self.estimator.curvature_sign
-            value_hat = self.estimator.model_output
+            view = self._view  # the estimator's f(u, thetahat) and curvature at thetahat
         else:
             self.bank.evaluate(self.a_estimate, value, slope, second)
-            curvature = second.copy()
-            value_hat = value.copy()
+            view = self._view._replace(value_hat=value.copy(), curvature=second.copy())
         self.bank.evaluate(self._theta, value, slope, second)
-        fill_info(self.info_array, rows, self.a_true, self.a_estimate, self.temperature, self.field,
-                  self.magnetization, self.state, self.model.output_index, self.model.output_offset, self.steps,
-                  config.dt, value_hat, value, curvature, self._pe_gain,
-                  -1.0 if config.stroke_limit is None else config.stroke_limit, config.temperature_limit,
-                  penalty, config.theta_width)
+        fill_info(self.info_array, rows, self._plant, view, value, penalty, self._score)
 
     @property
     def info(self) -> dict:

@@ -20,77 +20,139 @@ import sys
 import numpy as np
 from numba import njit
 
-from ..estimation._kernels import EstimatorState, estimator_step, interpolate_bank
+from collections import namedtuple
+
+from ..estimation._kernels import BankParams, BankState, EstimatorState, estimator_step, interpolate_bank
 from ..physics.hysteresis import advance_each
 from ..physics.linear_system import lti_step
 from ..physics.thermal import a_law_kernel, mean_square_linear_kernel, temperature_step_kernel
 
+# Named state and parameters of the step kernels (namedtuples of arrays and numbers, as in the
+# estimation layer, gymnax's EnvState/EnvParams the model). The kernels that Python calls once
+# per step (plant_step, finish_step, excitation_step) take them as plain tuples, made with
+# ``as_kernel_tuples``, and name them again on entry: numba types a plain tuple in its C
+# dispatcher but a namedtuple in Python, at about twice the cost per field.
+
+#: The true plants of the n sub-envs, changed in place: field H (A/m, H0 on entry of a step, H1
+#: on exit), magnetization M and M at the start of the step (A/m), transducer state and its
+#: scratch (n, s), temperature T and ambient at t = 0 (K), ambient drift (K/s), step counters,
+#: a(T) (A/m), measured outputs (n, w) and temperature (K), the pre-drawn standard normals
+#: (n, B, w) and the next index into them.
+PlantState = namedtuple("PlantState", [
+    "field", "magnetization", "magnetization_prev", "state", "state_next", "temperature", "ambient0",
+    "drift_rate", "steps", "a_true", "measured", "measured_temperature", "noise", "noise_pos"])
+#: The plants' fixed data: hysteresis parameters (n,) but a, the curve ``kind`` and
+#: ``max_field_step``; field limits (A/m per step); the transducer's exact discretization
+#: (``phi``, ``gamma0``, ``gamma1``), drive (``quadratic``, ``drive_gain``) and output indices
+#: (velocity -1: none); the thermal model (``drifting``, ``dt`` s, ``decay`` exp(-dt/tau),
+#: R/n^2, R_th, tau, a(T) of (4): a_reference at t_reference); the noise (sigma per measured
+#: column, whether any, whether a temperature sensor is measured).
+PlantParams = namedtuple("PlantParams", [
+    "k", "alpha", "Ms", "c", "kind", "max_field_step", "field_limit", "max_change", "phi", "gamma0", "gamma1",
+    "quadratic", "drive_gain", "output_index", "velocity_index", "drifting", "dt", "decay", "power_per_h2",
+    "thermal_resistance", "tau", "a_reference", "t_reference", "noise_sigma", "noisy", "temperature_sensor"])
+#: What the env reads of the estimate, (n,) arrays: thetahat (A/m), f(u, thetahat) and
+#: d2f/dtheta2 at it, the tuning error y_eps and the min-max gap nu_star (the estimator's
+#: live arrays; without an estimator the agent's estimate and filled scratch).
+EstimateView = namedtuple("EstimateView", ["a_estimate", "value_hat", "curvature", "tuning", "gap"])
+#: Rewards, terminations and the per-step truth: the time limit (steps), Theta and its width
+#: (A/m), the temperature and stroke limits with their penalty bands (stroke_limit <= 0: none),
+#: the penalty weight, the output read (index, offset), dt (s), the gain of the PE integrand,
+#: and whether the estimate is the agent's (action column ``estimate_column``).
+ScoreParams = namedtuple("ScoreParams", [
+    "truncation_steps", "theta_min", "theta_max", "theta_width", "temperature_limit", "temperature_band",
+    "stroke_limit", "stroke_band", "penalty_weight", "output_index", "output_offset", "dt", "pe_gain",
+    "agent_estimate", "estimate_column"])
+#: The observation layout: output scales, field and time normalization, Theta, the tuning
+#: features (eps, log-gap normalization, decades, present only with an estimator), the
+#: temperature feature (reference, scale, present only with a sensor) and the bounds.
+ObservationLayout = namedtuple("ObservationLayout", [
+    "scales", "field_limit", "episode_steps", "theta_min", "theta_width", "eps", "gap_norm", "decades",
+    "excitation", "t_reference", "temperature_scale", "temperature_sensor", "low", "high"])
+#: What one step writes besides the plant and the estimate: clipped actions (n, k), field
+#: commands, observations (n, d) float32, the info rows (len(INFO_KEYS), n) and the rows filled,
+#: rewards, terminations, truncations, errors, penalties, strokes, and scratch for f at the truth.
+StepBuffers = namedtuple("StepBuffers", [
+    "clipped", "command", "obs", "info", "rows", "reward", "terminated", "truncated", "error", "penalty", "stroke",
+    "truth_clipped", "value_true", "slope_scratch", "second_scratch"])
+#: All fixed data of one env step: action tolerance, then PlantParams, ScoreParams, ObservationLayout.
+EnvParams = namedtuple("EnvParams", ["tolerance", "plant", "score", "layout"])
+
 
 @njit(cache=True)
-def plant_step(command, active, field, magnetization, magnetization_prev, state, state_next, temperature,
-               ambient0, drift_rate, steps, a_true, measured, measured_temperature,
-               noise, noise_pos, noise_sigma, noisy, temperature_sensor,
-               k, alpha, Ms, c, kind, max_field_step, field_limit, max_change,
-               phi, gamma0, gamma1, quadratic, drive_gain, output_index, velocity_index,
-               drifting, dt, decay, power_per_h2, thermal_resistance, tau, a_reference, t_reference):
-    """One control period for every sub-env (arrays of shape (n,) or (n, s), in place).
+def plant_step(command, active, plant, params):
+    """One control period for every sub-env, in place in ``plant`` (a :class:`PlantState`;
+    ``params`` a :class:`PlantParams`, both as plain tuples).
 
-    ``field`` holds H0 on entry and H1 on exit (A/m); ``temperature`` K; ``steps`` the
-    step counters (incremented). Sub-envs with ``active[i] == False`` draw no noise.
-    ``noise`` (n, B, w) holds pre-drawn standard normals, ``noise_pos`` the next index.
+    ``plant.field`` holds H0 on entry and H1 on exit (A/m); the step counters are
+    incremented. Sub-envs with ``active[i] == False`` draw no noise.
     """
+    plant, params = PlantState(*plant), PlantParams(*params)
+    field, magnetization, magnetization_prev, state = plant.field, plant.magnetization, plant.magnetization_prev, \
+        plant.state
+    temperature, steps, measured, measured_temperature = plant.temperature, plant.steps, plant.measured, \
+        plant.measured_temperature
     n = field.shape[0]
     s = state.shape[1]
+    field_limit, max_change = params.field_limit, params.max_change
     field_from = field.copy()
     for i in range(n):
         target = min(max(command[i], -field_limit), field_limit)
         field[i] = min(max(target, field_from[i] - max_change), field_from[i] + max_change)
         magnetization_prev[i] = magnetization[i]
-    advance_each(magnetization, field_from, field, a_true, k, alpha, Ms, c, kind, max_field_step)
+    advance_each(magnetization, field_from, field, plant.a_true, params.k, params.alpha, params.Ms, params.c,
+                 params.kind, params.max_field_step)
+    drive_gain = params.drive_gain
     for i in range(n):
         m0 = magnetization_prev[i]
         m1 = magnetization[i]
-        if quadratic:
+        if params.quadratic:
             u0 = drive_gain * m0 * m0
             u1 = drive_gain * m1 * m1
         else:
             u0 = drive_gain * m0
             u1 = drive_gain * m1
-        lti_step(phi, gamma0, gamma1, state[i], u0, u1, state_next[i])
+        lti_step(params.phi, params.gamma0, params.gamma1, state[i], u0, u1, plant.state_next[i])
         for r in range(s):
-            state[i, r] = state_next[i, r]
-        if drifting:
-            power = power_per_h2 * mean_square_linear_kernel(field_from[i], field[i])
-            amb0 = ambient0[i] + drift_rate[i] * (steps[i] * dt)
-            amb1 = amb0 + drift_rate[i] * dt
+            state[i, r] = plant.state_next[i, r]
+        if params.drifting:
+            drift_rate = plant.drift_rate[i]
+            power = params.power_per_h2 * mean_square_linear_kernel(field_from[i], field[i])
+            amb0 = plant.ambient0[i] + drift_rate * (steps[i] * params.dt)
+            amb1 = amb0 + drift_rate * params.dt
             temperature[i] = temperature_step_kernel(temperature[i], amb0, amb1,
-                                                     thermal_resistance * power - drift_rate[i] * tau, decay)
+                                                     params.thermal_resistance * power - drift_rate * params.tau,
+                                                     params.decay)
         steps[i] += 1
-        a_true[i] = a_law_kernel(a_reference, temperature[i], t_reference)
-        measured[i, 0] = state[i, output_index]
-        if velocity_index >= 0:
-            measured[i, 1] = state[i, velocity_index]
+        plant.a_true[i] = a_law_kernel(params.a_reference, temperature[i], params.t_reference)
+        measured[i, 0] = state[i, params.output_index]
+        if params.velocity_index >= 0:
+            measured[i, 1] = state[i, params.velocity_index]
         measured_temperature[i] = temperature[i]
-        if noisy and active[i]:
-            p = noise_pos[i]
+        if params.noisy and active[i]:
+            p = plant.noise_pos[i]
+            noise, noise_sigma = plant.noise, params.noise_sigma
             for r in range(measured.shape[1]):
                 measured[i, r] += noise_sigma[r] * noise[i, p, r]
-            if temperature_sensor:
+            if params.temperature_sensor:
                 measured_temperature[i] += noise_sigma[measured.shape[1]] * noise[i, p, measured.shape[1]]
-            noise_pos[i] = p + 1
+            plant.noise_pos[i] = p + 1
 
 
 @njit(cache=True)
-def score_step(a_estimate, a_true, temperature, state, output_index, steps, truncation_steps, theta_width,
-               temperature_limit, temperature_band, stroke_limit, stroke_band, penalty_weight,
-               reward, terminated, truncated, error, penalty, stroke):
+def score_step(plant, view, buffers, score):
     """Reward ``-|a_estimate - a_true|/width - penalty`` (minus ``remaining steps`` on a
-    violation), terminations (constraints) and truncations (time limit). ``stroke_limit``
-    <= 0 means no stroke constraint."""
+    violation), terminations (constraints) and truncations (time limit), into ``buffers``.
+    ``score.stroke_limit`` <= 0 means no stroke constraint."""
+    a_true, temperature, state, steps = plant.a_true, plant.temperature, plant.state, plant.steps
+    a_estimate = view.a_estimate
+    temperature_limit, temperature_band = score.temperature_limit, score.temperature_band
+    stroke_limit, stroke_band = score.stroke_limit, score.stroke_band
     for i in range(a_true.shape[0]):
-        x = abs(state[i, output_index])
-        stroke[i] = x
-        error[i] = abs(a_estimate[i] - a_true[i]) / theta_width
+        x = abs(state[i, score.output_index])
+        buffers.stroke[i] = x
+        error = abs(a_estimate[i] - a_true[i]) / score.theta_width
+        buffers.error[i] = error
         excess = (temperature[i] - (temperature_limit - temperature_band)) / temperature_band
         p = excess * excess if excess > 0.0 else 0.0
         violated = temperature[i] > temperature_limit
@@ -100,42 +162,45 @@ def score_step(a_estimate, a_true, temperature, state, output_index, steps, trun
                 p += excess * excess
             if x > stroke_limit:
                 violated = True
-        p *= penalty_weight
-        penalty[i] = p
-        r = -error[i] - p
+        p *= score.penalty_weight
+        buffers.penalty[i] = p
+        r = -error - p
         if violated:
-            remaining = truncation_steps - steps[i]
+            remaining = score.truncation_steps - steps[i]
             if remaining > 0:
                 r -= remaining
-        reward[i] = r
-        terminated[i] = violated
-        truncated[i] = steps[i] >= truncation_steps
+        buffers.reward[i] = r
+        buffers.terminated[i] = violated
+        buffers.truncated[i] = steps[i] >= score.truncation_steps
 
 
 @njit(cache=True)
-def fill_observation(obs, measured, scales, field, field_limit, steps, episode_steps, a_estimate, theta_min,
-                     theta_width, tuning, eps, curvature, gap, gap_norm, decades, excitation,
-                     measured_temperature, t_reference, temperature_scale, temperature_sensor, low, high):
-    """Normalized observations (n, d), float32, clipped to the documented bounds."""
+def fill_observation(obs, plant, view, layout):
+    """Normalized observations (n, d), float32, clipped to the documented bounds
+    (``plant`` a :class:`PlantState`, ``view`` an :class:`EstimateView`, ``layout`` an
+    :class:`ObservationLayout`)."""
+    measured, field, steps = plant.measured, plant.field, plant.steps
+    tuning, curvature, gap = view.tuning, view.curvature, view.gap
+    scales, low, high = layout.scales, layout.low, layout.high
     n_out = measured.shape[1]
     for i in range(obs.shape[0]):
         col = 0
         for r in range(n_out):
             obs[i, col] = measured[i, r] / scales[r]
             col += 1
-        obs[i, col] = field[i] / field_limit
-        obs[i, col + 1] = steps[i] / episode_steps
-        obs[i, col + 2] = 2.0 * (a_estimate[i] - theta_min) / theta_width - 1.0
+        obs[i, col] = field[i] / layout.field_limit
+        obs[i, col + 1] = steps[i] / layout.episode_steps
+        obs[i, col + 2] = 2.0 * (view.a_estimate[i] - layout.theta_min) / layout.theta_width - 1.0
         col += 3
-        if excitation:
+        if layout.excitation:
             t = tuning[i]
-            magnitude = math.log10(1.0 + abs(t) / eps) / decades
+            magnitude = math.log10(1.0 + abs(t) / layout.eps) / layout.decades
             obs[i, col] = magnitude if t >= 0.0 else -magnitude
             obs[i, col + 1] = 1.0 if curvature[i] >= 0.0 else -1.0
-            obs[i, col + 2] = math.log1p(gap[i]) / gap_norm
+            obs[i, col + 2] = math.log1p(gap[i]) / layout.gap_norm
             col += 3
-        if temperature_sensor:
-            obs[i, col] = (measured_temperature[i] - t_reference) / temperature_scale
+        if layout.temperature_sensor:
+            obs[i, col] = (plant.measured_temperature[i] - layout.t_reference) / layout.temperature_scale
             col += 1
         for j in range(col):
             v = obs[i, j]
@@ -145,35 +210,31 @@ def fill_observation(obs, measured, scales, field, field_limit, steps, episode_s
                 obs[i, j] = high[j]
 
 
-
-
-
 @njit(cache=True)
-def fill_info(info, rows, a_true, a_estimate, temperature, field, magnetization, state, output_index,
-              output_offset, steps, dt, value_hat, value_true, curvature, pe_gain, stroke_limit, temperature_limit,
-              penalty, theta_width):
+def fill_info(info, rows, plant, view, value_true, penalty, score):
     """Write the per-step truth of sub-envs ``rows`` into ``info`` (len(INFO_KEYS), n).
 
-    Row order is :data:`~hyst_gym.envs.core.INFO_KEYS`. ``value_hat``/``value_true`` are
-    f(u, thetahat) and f(u, a_true) from the bank, ``curvature`` the sign beta at thetahat.
+    Row order is :data:`~hyst_gym.envs.core.INFO_KEYS`. ``view.value_hat`` and ``value_true``
+    are f(u, thetahat) and f(u, a_true) from the bank, ``view.curvature`` the sign beta at thetahat.
     """
+    a_true, a_estimate, temperature, state = plant.a_true, view.a_estimate, plant.temperature, plant.state
+    stroke_limit = score.stroke_limit
     for i in rows:
-        x = state[i, output_index] + output_offset
-        beta = 1.0 if curvature[i] >= 0.0 else -1.0
+        x = state[i, score.output_index] + score.output_offset
+        beta = 1.0 if view.curvature[i] >= 0.0 else -1.0
         info[0, i] = a_true[i]
         info[1, i] = a_estimate[i]
-        info[2, i] = abs(a_estimate[i] - a_true[i]) / theta_width
+        info[2, i] = abs(a_estimate[i] - a_true[i]) / score.theta_width
         info[3, i] = temperature[i]
-        info[4, i] = field[i]
-        info[5, i] = magnetization[i]
+        info[4, i] = plant.field[i]
+        info[5, i] = plant.magnetization[i]
         info[6, i] = x
-        info[7, i] = steps[i] * dt
-        info[8, i] = beta * pe_gain * (value_hat[i] - value_true[i])
+        info[7, i] = plant.steps[i] * score.dt
+        info[8, i] = beta * score.pe_gain * (view.value_hat[i] - value_true[i])
         info[9, i] = beta
         info[10, i] = 1.0 - abs(x) / stroke_limit if stroke_limit > 0.0 else np.inf
-        info[11, i] = temperature_limit - temperature[i]
+        info[11, i] = score.temperature_limit - temperature[i]
         info[12, i] = penalty[i]
-
 
 
 @njit(cache=True)
@@ -193,94 +254,69 @@ def clip_actions(actions, tolerance, clipped):
 
 
 @njit(cache=True)
-def finish_step(clipped, agent_estimate, estimate_column, a_estimate, theta_min, theta_max, theta_width,
-                a_true, temperature, state, output_index, output_offset, steps, truncation_steps,
-                temperature_limit, temperature_band, stroke_limit, stroke_band, penalty_weight,
-                reward, terminated, truncated, error, penalty, stroke,
-                info, rows, field, magnetization, dt, grid, bank_values, value_hat, curvature, truth_clipped,
-                value_true, slope_scratch, second_scratch, pe_gain,
-                obs, measured, scales, field_limit, episode_steps, tuning, eps, gap, gap_norm, decades, excitation,
-                measured_temperature, t_reference, temperature_scale, temperature_sensor, low, high):
+def finish_step(plant, view, buffers, score, layout, bank, bank_params):
     """Everything after the estimate of one step: rewards and terminations
     (:func:`score_step`), the per-step truth (:func:`fill_info`, with the PE integrand
     from the bank at clip(a_true, Theta)) and the observations (:func:`fill_observation`).
+    All seven structures come as plain tuples (``as_kernel_tuples``).
 
-    ``agent_estimate``: the estimate is the agent's (action column ``estimate_column``
-    mapped onto Theta); ``value_hat``/``curvature`` are then filled from the bank at it.
-    Otherwise they are the estimator's f(u, thetahat) and d2f/dtheta2.
+    ``score.agent_estimate``: the estimate is the agent's (action column
+    ``score.estimate_column`` mapped onto Theta); ``view.value_hat``/``view.curvature`` are
+    then filled from the bank at it. Otherwise they are the estimator's f(u, thetahat) and
+    d2f/dtheta2.
     """
+    plant, view, buffers = PlantState(*plant), EstimateView(*view), StepBuffers(*buffers)
+    score, layout = ScoreParams(*score), ObservationLayout(*layout)
+    grid, bank_values = BankParams(*bank_params).grid, BankState(*bank).magnetization
+    a_true, a_estimate = plant.a_true, view.a_estimate
+    theta_min, theta_max, theta_width = score.theta_min, score.theta_max, score.theta_width
     n = a_true.shape[0]
-    if agent_estimate:
+    if score.agent_estimate:
         for i in range(n):
-            a_estimate[i] = theta_min + 0.5 * (clipped[i, estimate_column] + 1.0) * theta_width
-        interpolate_bank(grid, bank_values, a_estimate, value_hat, slope_scratch, curvature)
-    score_step(a_estimate, a_true, temperature, state, output_index, steps, truncation_steps, theta_width,
-               temperature_limit, temperature_band, stroke_limit, stroke_band, penalty_weight,
-               reward, terminated, truncated, error, penalty, stroke)
+            a_estimate[i] = theta_min + 0.5 * (buffers.clipped[i, score.estimate_column] + 1.0) * theta_width
+        interpolate_bank(grid, bank_values, a_estimate, view.value_hat, buffers.slope_scratch, view.curvature)
+    score_step(plant, view, buffers, score)
     for i in range(n):
-        truth_clipped[i] = min(max(a_true[i], theta_min), theta_max)
-    interpolate_bank(grid, bank_values, truth_clipped, value_true, slope_scratch, second_scratch)
-    fill_info(info, rows, a_true, a_estimate, temperature, field, magnetization, state, output_index,
-              output_offset, steps, dt, value_hat, value_true, curvature, pe_gain,
-              stroke_limit, temperature_limit, penalty, theta_width)
-    fill_observation(obs, measured, scales, field, field_limit, steps, episode_steps, a_estimate, theta_min,
-                     theta_width, tuning, eps, curvature, gap, gap_norm, decades, excitation,
-                     measured_temperature, t_reference, temperature_scale, temperature_sensor, low, high)
+        buffers.truth_clipped[i] = min(max(a_true[i], theta_min), theta_max)
+    interpolate_bank(grid, bank_values, buffers.truth_clipped, buffers.value_true, buffers.slope_scratch,
+                     buffers.second_scratch)
+    fill_info(buffers.info, buffers.rows, plant, view, buffers.value_true, buffers.penalty, score)
+    fill_observation(buffers.obs, plant, view, layout)
 
 
 @njit(cache=True)
-def excitation_step(actions, tolerance, clipped, command, active,
-                    field, magnetization, magnetization_prev, state, state_next, temperature, ambient0, drift_rate,
-                    steps, a_true, measured, measured_temperature, noise, noise_pos, noise_sigma, noisy,
-                    temperature_sensor, k, alpha, Ms, c, kind, max_field_step, field_limit, max_change,
-                    phi, gamma0, gamma1, quadratic, drive_gain, output_index, velocity_index,
-                    drifting, dt, decay, power_per_h2, thermal_resistance, tau, a_reference, t_reference,
-                    bank, bank_params, estimator, observer, hold,
-                    agent_estimate, estimate_column, a_estimate, theta_min, theta_max, theta_width,
-                    f_a_true, f_temperature, f_state, f_output_index, output_offset, f_steps, truncation_steps,
-                    temperature_limit, temperature_band, stroke_limit, stroke_band, penalty_weight,
-                    reward, terminated, truncated, error, penalty, stroke,
-                    info, rows, f_field, f_magnetization, f_dt, f_grid, f_bank_values, value_hat, curvature,
-                    truth_clipped, value_true, slope_scratch, second_scratch, pe_gain,
-                    obs, f_measured, scales, f_field_limit, episode_steps, tuning, f_eps, gap, gap_norm, decades,
-                    excitation, measured_temperature_obs, t_reference_obs, temperature_scale,
-                    temperature_sensor_obs, low, high):
+def excitation_step(actions, active, plant, view, buffers, params, estimator):
     """One whole Excitation step in one call: actions -> :func:`plant_step` -> the
     estimator's :func:`~hyst_gym.estimation._kernels.estimator_step` -> :func:`finish_step`.
 
-    Argument groups are, in order, those of the four kernels (the ``f_`` names of the
-    last group repeat arrays passed before); the estimator's are its named state
-    (:class:`~hyst_gym.estimation._kernels.BankState`, ``BankParams``, ``EstimatorState``,
-    ``ObserverParams``, ``HoldParams``) as plain tuples (``as_kernel_tuples``). Returns 0, 1 (an action is not finite or
-    outside [-1, 1]; nothing changed) or 2 (the estimator got a non-finite input).
+    ``plant`` (:class:`PlantState`), ``view`` (:class:`EstimateView`), ``buffers``
+    (:class:`StepBuffers`), ``params`` (:class:`EnvParams`) and ``estimator`` (the estimation
+    layer's BankState, BankParams, EstimatorState, ObserverParams and HoldParams, in that
+    order) come as plain tuples. Returns 0, 1 (an action is not finite or outside [-1, 1];
+    nothing changed) or 2 (the estimator got a non-finite input).
     """
-    if not clip_actions(actions, tolerance, clipped):
+    # named copies for what this kernel reads itself; the callees take the plain tuples
+    named = EnvParams(*params)
+    named_buffers, named_plant = StepBuffers(*buffers), PlantState(*plant)
+    bank, bank_params, state, observer, hold = estimator
+    clipped, command = named_buffers.clipped, named_buffers.command
+    if not clip_actions(actions, named.tolerance, clipped):
         return 1
+    field_limit = PlantParams(*named.plant).field_limit
     for i in range(command.shape[0]):
         command[i] = clipped[i, 0] * field_limit
-    plant_step(command, active, field, magnetization, magnetization_prev, state, state_next, temperature,
-               ambient0, drift_rate, steps, a_true, measured, measured_temperature, noise, noise_pos, noise_sigma,
-               noisy, temperature_sensor, k, alpha, Ms, c, kind, max_field_step, field_limit, max_change,
-               phi, gamma0, gamma1, quadratic, drive_gain, output_index, velocity_index,
-               drifting, dt, decay, power_per_h2, thermal_resistance, tau, a_reference, t_reference)
-    if estimator_step(field, measured, bank, bank_params, estimator, observer, hold):
+    plant_step(command, active, plant, named.plant)
+    if estimator_step(named_plant.field, named_plant.measured, bank, bank_params, state, observer, hold):
         return 2
-    theta = EstimatorState(*estimator).theta
+    theta, a_estimate = EstimatorState(*state).theta, EstimateView(*view).a_estimate
     for i in range(theta.shape[0]):
         a_estimate[i] = theta[i]
-    finish_step(clipped, agent_estimate, estimate_column, a_estimate, theta_min, theta_max, theta_width,
-                f_a_true, f_temperature, f_state, f_output_index, output_offset, f_steps, truncation_steps,
-                temperature_limit, temperature_band, stroke_limit, stroke_band, penalty_weight,
-                reward, terminated, truncated, error, penalty, stroke,
-                info, rows, f_field, f_magnetization, f_dt, f_grid, f_bank_values, value_hat, curvature,
-                truth_clipped, value_true, slope_scratch, second_scratch, pe_gain,
-                obs, f_measured, scales, f_field_limit, episode_steps, tuning, f_eps, gap, gap_norm, decades,
-                excitation, measured_temperature_obs, t_reference_obs, temperature_scale,
-                temperature_sensor_obs, low, high)
+    finish_step(plant, view, buffers, named.score, named.layout, bank, bank_params)
     return 0
 
 
-__all__ = ["clip_actions", "excitation_step", "fill_info", "fill_observation", "finish_step", "plant_step",
+__all__ = ["EnvParams", "EstimateView", "ObservationLayout", "PlantParams", "PlantState", "ScoreParams", "StepBuffers",
+           "clip_actions", "excitation_step", "fill_info", "fill_observation", "finish_step", "plant_step",
            "score_step"]
 
 

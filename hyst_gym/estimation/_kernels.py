@@ -75,9 +75,13 @@ HoldParams = namedtuple("HoldParams", ["dt", "transition", "hold0", "hold1", "we
 
 
 def as_kernel_tuples(*structures) -> tuple:
-    """The named structures as plain tuples, in their field order, for a kernel that names
-    them again on entry (see above)."""
-    return tuple(tuple(structure) for structure in structures)
+    """The named structures as plain tuples (nested ones too), in their field order, for a
+    kernel that names them again on entry (see above)."""
+    return tuple(_plain(structure) for structure in structures)
+
+
+def _plain(value):
+    return tuple(_plain(field) for field in value) if isinstance(value, tuple) else value
 
 
 @njit(cache=True)
