@@ -47,7 +47,7 @@ import argparse
 import json
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
@@ -219,6 +219,10 @@ def _smooth(p):
                            Ms=CriticalPowerLaw(p["Ms0"], GD_CURIE_K, p["beta"]), alpha=Constant(0.0))
 
 
+def _smooth_small_loop(p):
+    return replace(_smooth(p), chi_r=FollowsMs(p["chi0"], p["n_chi"]))
+
+
 FAMILIES = {
     "eq4": LawFamily(
         "eq4", "paper eq. (4): a = a_ref T/T_ref; Ms, k, c constant",
@@ -241,6 +245,13 @@ FAMILIES = {
         (float(np.log(50.0)), -3.0, -3.0, float(np.log(5.0)), -3.0, -3.0, 1e-3, 1e5, 0.05),
         (float(np.log(1e5)), 3.0, 3.0, float(np.log(2e4)), 3.0, 3.0, 0.99, 2e7, 1.5),
         (False, False, False, False, False, False, True, True, False), _smooth),
+    "smooth_small_loop": LawFamily(
+        "smooth_small_loop", "smooth, plus the small-loop extension: chi_r = chi0 (Ms/Ms0)^n_chi",
+        ("la0", "la1", "la2", "lk0", "lk1", "lk2", "c", "Ms0", "beta", "chi0", "n_chi"),
+        (float(np.log(5000.0)), 0.0, 0.0, float(np.log(400.0)), 0.3, 0.0, 0.45, 2.3e6, 0.31, 10.0, 1.0),
+        (float(np.log(50.0)), -3.0, -3.0, float(np.log(5.0)), -3.0, -3.0, 1e-3, 1e5, 0.05, 1e-3, -4.0),
+        (float(np.log(1e5)), 3.0, 3.0, float(np.log(2e4)), 3.0, 3.0, 0.99, 2e7, 1.5, 1e4, 4.0),
+        (False, False, False, False, False, False, True, True, False, True, False), _smooth_small_loop),
 }
 
 
@@ -249,7 +260,7 @@ FAMILIES = {
 
 def parameter_table(family: LawFamily, zs: np.ndarray, temperatures_K: np.ndarray) -> Dict[str, np.ndarray]:
     """JA parameters, each of shape (len(zs), len(temperatures_K)), for fit coordinates ``zs``."""
-    out = {n: np.empty((len(zs), len(temperatures_K))) for n in ("a", "k", "c", "Ms", "alpha")}
+    out = {n: np.empty((len(zs), len(temperatures_K))) for n in ("a", "k", "c", "Ms", "alpha", "chi_r")}
     for i, z in enumerate(zs):
         values = family.build(family.from_z(z))(temperatures_K)
         for n in out:
@@ -269,7 +280,8 @@ def simulate_records(records: Sequence[Record], family: LawFamily, zs: np.ndarra
     for r in records:
         j = int(np.searchsorted(temps, r.temperature_K))
         try:
-            batch = HysteresisBatch(*(table[n][:, j] for n in ("a", "k", "alpha", "Ms", "c")), ANHYSTERETIC)
+            batch = HysteresisBatch(*(table[n][:, j] for n in ("a", "k", "alpha", "Ms", "c")), ANHYSTERETIC,
+                                    table["chi_r"][:, j])
         except ValueError:
             out.append(None)
             continue
@@ -514,7 +526,8 @@ def main(argv=None) -> int:
     if len(temps) < 3:
         parser.error(f"--data needs at least 3 temperatures, got {len(temps)}")
     interior = temps[1:-1]
-    families = ("eq4", "smooth") if args.quick else ("eq4", "eq4_critical_ms", "critical", "smooth")
+    families = ("eq4", "smooth") if args.quick else ("eq4", "eq4_critical_ms", "critical", "smooth",
+                                                     "smooth_small_loop")
     holdouts = interior[::2] if args.quick else interior
     start = time.perf_counter()
     study = run_study(records, families, holdouts, predict_records, max_nfev=60 if args.quick else 200)

@@ -151,7 +151,7 @@ class LogPolynomial:
         return log_polynomial(T, self.coefficients, self.T_ref, self.T_scale)
 
 
-PARAMETER_NAMES = ("a", "k", "c", "Ms", "alpha")
+PARAMETER_NAMES = ("a", "k", "c", "Ms", "alpha", "chi_r")
 
 
 @dataclass(frozen=True)
@@ -160,7 +160,8 @@ class TemperatureLaws:
 
     Defaults: ``a`` follows eq. (4) with the paper's Terfenol-D values (7012 A/m at
     263 K) and everything else is constant, so that ``TemperatureLaws()`` reproduces
-    the paper's temperature model.
+    the paper's temperature model. ``chi_r`` is the small-loop extension's reversible
+    susceptibility (``hysteresis.SMALL_LOOP_EXTENSION``); its default 0 is model (6).
     """
 
     a: object = field(default_factory=lambda: LinearInT(7012.0, 263.0))
@@ -168,6 +169,7 @@ class TemperatureLaws:
     c: object = field(default_factory=lambda: Constant(0.18))
     Ms: object = field(default_factory=lambda: Constant(7.65e5))
     alpha: object = field(default_factory=lambda: Constant(-0.1))
+    chi_r: object = field(default_factory=lambda: Constant(0.0))
 
     def reduced_ms(self, T):
         """``Ms(T)/Ms(0 K)`` (dimensionless); 1 for a constant Ms."""
@@ -176,7 +178,7 @@ class TemperatureLaws:
         return self.Ms(T, None) / ms0
 
     def __call__(self, T):
-        """Dict ``{a, k, c, Ms, alpha}`` of float arrays shaped like ``T`` (K)."""
+        """Dict ``{a, k, c, Ms, alpha, chi_r}`` of float arrays shaped like ``T`` (K)."""
         T = _kelvin(T)
         reduced = self.reduced_ms(T)
         return {name: np.broadcast_to(np.asarray(getattr(self, name)(T, reduced), dtype=np.float64),
@@ -189,7 +191,7 @@ class TemperatureLaws:
 
         values = self(np.atleast_1d(np.asarray(T, dtype=np.float64)).ravel())
         return HysteresisBatch(values["a"], values["k"], values["alpha"], values["Ms"], values["c"],
-                               anhysteretic)
+                               anhysteretic, values["chi_r"])
 
 
 __all__ = [

@@ -47,7 +47,8 @@ def test_temperature_laws_vectorize_and_follow_ms():
                            Ms=CriticalPowerLaw(2.0e6, GD_CURIE_K, 0.3), alpha=Constant(0.0))
     T = celsius_to_kelvin(np.array([[-38.0, -10.0], [0.0, 15.0]]))
     values = laws(T)
-    assert set(values) == {"a", "k", "c", "Ms", "alpha"}
+    assert set(values) == {"a", "k", "c", "Ms", "alpha", "chi_r"}
+    assert np.all(values["chi_r"] == 0.0)  # the small-loop extension is off unless a law is given
     for v in values.values():
         assert v.shape == T.shape
     reduced = values["Ms"] / 2.0e6
@@ -72,6 +73,10 @@ def test_default_laws_are_the_papers_model_and_build_a_batch():
     assert float(laws.reduced_ms(300.0)) == 1.0
     T = np.array([250.0, 263.0, 290.0])
     batch = laws.batch(T, "ising")
+    assert not batch.small_loop
+    with_small_loops = TemperatureLaws(chi_r=FollowsMs(40.0, 2.0), Ms=CriticalPowerLaw(2.0e6, GD_CURIE_K, 0.3))
+    warm, cold = with_small_loops.batch(celsius_to_kelvin(np.array([10.0, -30.0])), "langevin").chi_r
+    assert 0.0 < warm < cold < 40.0  # follows Ms**2 down towards the Curie point
     np.testing.assert_allclose(batch.a, 7012.0 * T / 263.0)
     H = 1.2e5 * np.sin(np.linspace(0, 2 * np.pi, 801))
     M = simulate_batch(H, batch)
