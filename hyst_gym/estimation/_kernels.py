@@ -232,14 +232,17 @@ def minmax_one(grid, g, theta_hat, sign, gradient, xs, ys, hull):
     return 0.0, sign * gradient  # unreachable: the hull spans [xs[0], xs[n-1]]
 
 
+@njit(cache=True, inline="always")
+def _minmax_workspace(G):
+    """Work arrays of :func:`minmax_one` on a grid of G nodes: xs, ys, hull (G + 1) and g (G)."""
+    return np.empty(G + 1), np.empty(G + 1), np.empty(G + 1, dtype=np.int64), np.empty(G)
+
+
 @njit(cache=True)
 def minmax_batch(grid, values, theta_hat, value_hat, gradient, sign, out_nu, out_phi):
     """:func:`minmax_one` for every system: ``values`` (E, G), the rest (E,)."""
     G = grid.shape[0]
-    xs = np.empty(G + 1)
-    ys = np.empty(G + 1)
-    hull = np.empty(G + 1, dtype=np.int64)
-    g = np.empty(G)
+    xs, ys, hull, g = _minmax_workspace(G)
     for e in range(values.shape[0]):
         for i in range(G):
             g[i] = values[e, i] - value_hat[e]
@@ -356,10 +359,7 @@ def observer_step(grid, values, measured, state, observer, hold):
                                             observer.offset)
     E, n = yhat.shape
     G = grid.shape[0]
-    xs = np.empty(G + 1)
-    ys = np.empty(G + 1)
-    hull = np.empty(G + 1, dtype=np.int64)
-    g = np.empty(G)
+    xs, ys, hull, g = _minmax_workspace(G)
     free = np.empty(n)
     new_state = np.empty(n)
     for e in range(E):
@@ -406,10 +406,7 @@ def refresh(grid, values, measured, state, observer):
     tuning_row, vector, eps = observer.tuning_row, observer.vector, observer.eps
     E, n = yhat.shape
     G = grid.shape[0]
-    xs = np.empty(G + 1)
-    ys = np.empty(G + 1)
-    hull = np.empty(G + 1, dtype=np.int64)
-    g = np.empty(G)
+    xs, ys, hull, g = _minmax_workspace(G)
     for e in range(E):
         row = values[e]
         value, slope, curvature = _interpolate_one(grid, row, theta[e])
