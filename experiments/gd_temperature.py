@@ -453,6 +453,38 @@ def markdown_table(study: dict, families: Sequence[str]) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: What each law family is, in the words of the README's summary table.
+FAMILY_LABELS = {
+    "eq4": "eq. (4) alone, constant Ms (the paper's model)",
+    "eq4_critical_ms": "eq. (4) for a, critical power-law Ms, k following Ms",
+    "critical": "a and k following Ms",
+    "smooth": "smooth laws for a and k, power-law Ms",
+    "smooth_small_loop": "smooth laws + small-loop extension (chi_r following Ms)",
+}
+
+
+def summary_table(study: dict, families: Sequence[str]) -> str:
+    """README summary: worst leave-one-out NRMSE of B (%) per family and amplitude, the
+    held-out temperature of each worst case, and the worst over the other temperatures."""
+    rows = study["rows"]
+    peaks = {amp: np.median([r["peak_field"] for r in rows if r["amplitude"] == amp]) for amp in AMPLITUDES}
+    lines = ["| law | " + " | ".join(f"{amp} (≈ {peaks[amp]:.3g} A/m)" for amp in AMPLITUDES) + " |",
+             "|---|" + "---|" * len(AMPLITUDES)]
+    for f in families:
+        cells = []
+        for amp in AMPLITUDES:
+            loo = sorted((r["nrmse"], r["temperature_C"]) for r in rows if r["law"] == f and r["amplitude"] == amp
+                         and r["protocol"] == "loo" and r["nrmse"] is not None)
+            if not loo:
+                cells.append("-")
+                continue
+            worst, at = loo[-1]
+            rest = f"; ≤ {100 * loo[-2][0]:.2f} elsewhere" if len(loo) > 1 else ""
+            cells.append(f"{100 * worst:.2f} ({at:+g} °C{rest})")
+        lines.append(f"| {FAMILY_LABELS.get(f, f)} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def make_figure(records, study, families, held_out_T, path):
     import matplotlib
 
@@ -546,6 +578,10 @@ def main(argv=None) -> int:
         suffix = "_quick" if args.quick else ""
         (RESULTS_DIR / f"results{suffix}.json").write_text(json.dumps(study, indent=1, default=float))
         (RESULTS_DIR / f"results{suffix}.md").write_text(table)
+        if not args.quick and Path(args.data).resolve() == DEFAULT_DATA.resolve() and not args.predict:
+            from experiments.report_markdown import update_readme
+
+            update_readme(ROOT / "README.md", summary_table(study, families), area="gd-summary")
         held = holdouts[-1] if holdouts else temps[0]  # the held-out temperature nearest Tc
         if holdouts:
             make_figure(records, study, families, held, FIGURES_DIR / f"gd_temperature{suffix}.png")
