@@ -5,9 +5,7 @@ EnvState/EnvParams the model), so a long positional list, where swapping two arr
 type compiles and silently gives wrong numbers, is never the contract. Checked statically
 with ``ast`` on every ``@njit`` function.
 
-Scope: all of ``hyst_gym`` but ``physics/hysteresis.py``, whose inlined per-model SIMD
-kernels (``_slope``, ``_midpoint``: the constants of (6) per lane) are still to be regrouped
-by their owner; the issue stays open on that file.
+Scope: every module of ``hyst_gym``.
 """
 
 import ast
@@ -17,7 +15,6 @@ import pytest
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "hyst_gym"
 MAX_ARGUMENTS = 12
-NOT_YET_REGROUPED = {"physics/hysteresis.py"}
 
 
 def compiled_kernels(path: pathlib.Path) -> dict[str, int]:
@@ -30,7 +27,7 @@ def compiled_kernels(path: pathlib.Path) -> dict[str, int]:
 
 
 def test_kernels_take_at_most_twelve_arguments():
-    files = [f for f in sorted(PACKAGE.rglob("*.py")) if str(f.relative_to(PACKAGE)) not in NOT_YET_REGROUPED]
+    files = sorted(PACKAGE.rglob("*.py"))
     counts = {f"{f.relative_to(PACKAGE)}::{name}": n for f in files for name, n in compiled_kernels(f).items()}
     assert len(counts) > 20, "expected the kernels of physics, estimation, envs and diagnose"
     too_long = {name: n for name, n in counts.items() if n > MAX_ARGUMENTS}

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
@@ -228,46 +229,53 @@ class HysteresisBatch:
 # check (a division that can only yield a discarded lane never raises).
 
 
+#: The constants of (6) for one model in one direction of travel, formed once per lane so that
+#: the bank loop over models vectorizes; fields in A/m or dimensionless as in HysteresisParams.
+#: A namedtuple, not positional arguments: numba compiles it to a plain struct and caches it.
+LaneConstants = namedtuple("LaneConstants",
+                           ("alpha", "inv_a", "Ms", "ms_over_a", "k_delta", "alphahat", "c", "alpha_c"))
+
+
+@njit(cache=True, inline="always")
+def lane_constants(a, k, alpha, Ms, c, delta):
+    """:data:`LaneConstants` of one model moving in direction ``delta`` (+-1)."""
+    inv_a = 1.0 / a
+    return LaneConstants(alpha, inv_a, Ms, Ms * inv_a, k * delta, alpha / (1.0 - c), c, alpha * c)
+
+
 @njit(cache=True, inline="always", error_model="numpy")
-def _slope(field, magnetization, delta, alpha, inv_a, Ms, ms_over_a, k_delta, alphahat, c, alpha_c, kind):
-    """dM/dH of (6) from precomputed per-model constants (1/a, Ms/a, k*delta, alpha/(1-c), alpha*c)."""
-    unit, unit_slope = anhysteretic_unit((field + alpha * magnetization) * inv_a, kind)
-    man_slope = ms_over_a * unit_slope
-    gap = Ms * unit - magnetization
-    denominator = k_delta - alphahat * gap
+def _slope(field, magnetization, delta, lane, kind):
+    """dM/dH of (6) from a model's :data:`LaneConstants`."""
+    unit, unit_slope = anhysteretic_unit((field + lane.alpha * magnetization) * lane.inv_a, kind)
+    man_slope = lane.ms_over_a * unit_slope
+    gap = lane.Ms * unit - magnetization
+    denominator = lane.k_delta - lane.alphahat * gap
     # dhat = 1 when M lags Man in the direction of travel. Guard: a denominator on the
     # wrong side of delta (possible for alpha > 0) would mean negative susceptibility;
     # the irreversible change is then 0.
     irreversible_on = (gap * delta > 0.0) & (denominator * delta > 0.0)
     irreversible = gap / (denominator if irreversible_on else delta)
     irreversible = irreversible if irreversible_on else 0.0
-    return (irreversible + c * man_slope) / (1.0 - alpha_c * man_slope)
+    return (irreversible + lane.c * man_slope) / (1.0 - lane.alpha_c * man_slope)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _midpoint(field, magnetization, step, delta, alpha, inv_a, Ms, ms_over_a, k_delta, alphahat, c, alpha_c,
-              kind):
-    slope_start = _slope(field, magnetization, delta, alpha, inv_a, Ms, ms_over_a, k_delta, alphahat, c,
-                         alpha_c, kind)
+def _midpoint(field, magnetization, step, delta, lane, kind):
+    slope_start = _slope(field, magnetization, delta, lane, kind)
     half = magnetization + (0.5 * step) * slope_start
-    slope_mid = _slope(field + 0.5 * step, half, delta, alpha, inv_a, Ms, ms_over_a, k_delta, alphahat, c,
-                       alpha_c, kind)
+    slope_mid = _slope(field + 0.5 * step, half, delta, lane, kind)
     return magnetization + step * slope_mid
 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def magnetization_slope(field, magnetization, delta, a, k, alpha, Ms, c, kind):
     """dM/dH of eq. (6) at one state, for a field moving in direction ``delta`` (+-1)."""
-    inv_a = 1.0 / a
-    return _slope(field, magnetization, delta, alpha, inv_a, Ms, Ms * inv_a, k * delta, alpha / (1.0 - c), c,
-                  alpha * c, kind)
+    return _slope(field, magnetization, delta, lane_constants(a, k, alpha, Ms, c, delta), kind)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _midpoint_substep(field, magnetization, step, delta, a, k, alpha, Ms, c, kind):
-    inv_a = 1.0 / a
-    return _midpoint(field, magnetization, step, delta, alpha, inv_a, Ms, Ms * inv_a, k * delta,
-                     alpha / (1.0 - c), c, alpha * c, kind)
+    return _midpoint(field, magnetization, step, delta, lane_constants(a, k, alpha, Ms, c, delta), kind)
 
 
 @njit(cache=True, inline="always")
@@ -312,14 +320,16 @@ def _advance_bank(magnetization, field_from, field_to, alpha, Ms, c, constants, 
         for s in range(n):
             field = field_from + s * step
             for b in range(magnetization.shape[0]):  # the SIMD loop
-                magnetization[b] = _midpoint(field, magnetization[b], step, delta, alpha[b], inv_a[b], Ms[b],
-                                             ms_over_a[b], k[b] * delta, alphahat[b], c[b], alpha_c[b], ISING)
+                lane = LaneConstants(alpha[b], inv_a[b], Ms[b], ms_over_a[b], k[b] * delta, alphahat[b], c[b],
+                                     alpha_c[b])
+                magnetization[b] = _midpoint(field, magnetization[b], step, delta, lane, ISING)
     else:
         for s in range(n):
             field = field_from + s * step
             for b in range(magnetization.shape[0]):
-                magnetization[b] = _midpoint(field, magnetization[b], step, delta, alpha[b], inv_a[b], Ms[b],
-                                             ms_over_a[b], k[b] * delta, alphahat[b], c[b], alpha_c[b], LANGEVIN)
+                lane = LaneConstants(alpha[b], inv_a[b], Ms[b], ms_over_a[b], k[b] * delta, alphahat[b], c[b],
+                                     alpha_c[b])
+                magnetization[b] = _midpoint(field, magnetization[b], step, delta, lane, LANGEVIN)
     return n
 
 
@@ -398,14 +408,12 @@ SMALL_LOOP_EXTENSION = "dM/dH = (6) + chi_r * max(0, 1 - (M/Ms)^2)"
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _small_loop_slope(field, magnetization, delta, alpha, inv_a, Ms, ms_over_a, k_delta, alphahat, c, alpha_c,
-                      chi_r, kind):
+def _small_loop_slope(field, magnetization, delta, lane, chi_r, kind):
     """dM/dH of the small-loop extension: the slope of (6) plus the fading reversible term."""
-    ratio = magnetization / Ms
+    ratio = magnetization / lane.Ms
     fading = 1.0 - ratio * ratio
     fading = fading if fading > 0.0 else 0.0
-    return _slope(field, magnetization, delta, alpha, inv_a, Ms, ms_over_a, k_delta, alphahat, c, alpha_c,
-                  kind) + chi_r * fading
+    return _slope(field, magnetization, delta, lane, kind) + chi_r * fading
 
 
 @njit(cache=True, error_model="numpy")
@@ -420,15 +428,10 @@ def advance_shared_small_loop(magnetization, field_from, field_to, a, k, alpha, 
     for s in range(n):
         field = field_from + s * step
         for b in range(magnetization.shape[0]):
-            inv_a = 1.0 / a[b]
-            ms_over_a = Ms[b] * inv_a
-            alphahat = alpha[b] / (1.0 - c[b])
-            alpha_c = alpha[b] * c[b]
+            lane = lane_constants(a[b], k[b], alpha[b], Ms[b], c[b], delta)
             m = magnetization[b]
-            slope_start = _small_loop_slope(field, m, delta, alpha[b], inv_a, Ms[b], ms_over_a, k[b] * delta,
-                                            alphahat, c[b], alpha_c, chi_r[b], kind)
-            slope_mid = _small_loop_slope(field + 0.5 * step, m + (0.5 * step) * slope_start, delta, alpha[b],
-                                          inv_a, Ms[b], ms_over_a, k[b] * delta, alphahat, c[b], alpha_c,
+            slope_start = _small_loop_slope(field, m, delta, lane, chi_r[b], kind)
+            slope_mid = _small_loop_slope(field + 0.5 * step, m + (0.5 * step) * slope_start, delta, lane,
                                           chi_r[b], kind)
             magnetization[b] = m + step * slope_mid
     return n
