@@ -19,12 +19,14 @@ from __future__ import annotations
 import json
 import pathlib
 
+from hyst_gym.estimation import ESTIMATORS
+
 from .agents import ScheduleAgent
 from .schedules import TUNING_GRIDS, make_schedule
 
 SCHEDULE_AGENTS = ("ramp", "ramp_tuned", "sine", "chirp", "prbs", "multisine", "random")
 DESIGN_AGENTS = ("optimal_design", "optimal_design_prior", "direct_design")
-ESTIMATOR_AGENTS = ("minmax", "gradient", "multiple_model")
+ESTIMATOR_AGENTS = tuple(ESTIMATORS)  # the estimation layer's registry, in its order
 ADAPTIVE_AGENTS = ("greedy_info",)
 ALL_NAMED_AGENTS = SCHEDULE_AGENTS + DESIGN_AGENTS + ADAPTIVE_AGENTS + ESTIMATOR_AGENTS
 

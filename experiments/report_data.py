@@ -16,6 +16,7 @@ from collections import defaultdict
 
 import numpy as np
 
+from baselines.registry import ESTIMATOR_AGENTS
 from baselines.stats import probability_of_improvement, probability_of_improvement_ci, summarize
 from baselines.survival import censor
 
@@ -24,7 +25,7 @@ DEFAULT_RESULTS = ROOT / "experiments" / "results"
 #: summary.json agent keys of the main RL configurations (declared before the run).
 RL_MAIN = {"ppo": "ppo_stack8", "sac": "sac_stack8"}
 RL_CONFIG_PREFIXES = ("ppo_", "sac_")
-ESTIMATORS = ("minmax", "gradient", "multiple_model")
+ESTIMATORS = ESTIMATOR_AGENTS  # the estimators run as agents (baselines.registry)
 
 
 def _float(value):
