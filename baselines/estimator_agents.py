@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from .agents import Agent
-from .observation import env_config, observation_index
+from .observation import observation_index
 
 
 class EstimatorAgent(Agent):
@@ -31,7 +31,7 @@ class EstimatorAgent(Agent):
         if estimator_name not in ESTIMATORS:
             raise ValueError(f"unknown estimator {estimator_name!r}; expected one of {sorted(ESTIMATORS)}")
         self.name = estimator_name
-        self.config = env_config(scenario)
+        self.config = scenario.env_config
         self.est_config = estimator_config(self.config)
         self.scales = output_scales(self.config, self.config.transducer.discretize(self.config.dt))
         self.n_outputs = self.scales.shape[0]

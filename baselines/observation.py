@@ -9,16 +9,10 @@ from __future__ import annotations
 import numpy as np
 
 
-def env_config(scenario):
-    from hyst_gym.envs.config import make_config
-
-    return make_config(**scenario.settings)
-
-
 def observation_index(scenario, name: str, mode: str = "excitation") -> int:
     from hyst_gym.envs.core import observation_names
 
-    names = observation_names(env_config(scenario), mode)
+    names = observation_names(scenario.env_config, mode)
     if name not in names:
         raise ValueError(f"observation of {mode} mode has no {name!r} (it has {names})")
     return names.index(name)
@@ -26,7 +20,7 @@ def observation_index(scenario, name: str, mode: str = "excitation") -> int:
 
 def estimate_reader(scenario):
     """Function: Excitation-v0 observations (n, d) -> the built-in estimator's a_estimate (A/m)."""
-    config = env_config(scenario)
+    config = scenario.env_config
     index = observation_index(scenario, "a_estimate")
     lo, width = config.theta_min, config.theta_width
 
@@ -36,4 +30,4 @@ def estimate_reader(scenario):
     return read
 
 
-__all__ = ["env_config", "observation_index", "estimate_reader"]
+__all__ = ["observation_index", "estimate_reader"]

@@ -15,6 +15,7 @@ and schedule tuning :data:`TUNING_SEEDS`; the three sets are disjoint.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -75,6 +76,16 @@ class Scenario:
     @property
     def episode_steps(self) -> int:
         return int(round(self.episode_s / self.limits.dt))
+
+    @cached_property
+    def env_config(self):
+        """The scenario's :class:`hyst_gym.envs.EnvConfig`, built and validated once: the agents,
+        the observation readers and the transfer checks all read this one (``settings`` is
+        not changed after construction). Imported here, so a scenario ships to another
+        process without the envs layer."""
+        from hyst_gym.envs.config import make_config
+
+        return make_config(**self.settings)
 
     def spec(self, env_id: str = EXCITATION_ID) -> EpisodeSpec:
         return EpisodeSpec(env_id, env_kwargs(self, env_id), self.limits.dt)

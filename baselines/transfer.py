@@ -59,10 +59,8 @@ def adapt_agent(agent: Agent, trained_scenario, target_scenario, mode: str = "ex
     unchanged when the two observation layouts agree, else an :class:`ObservationAdapter`."""
     from hyst_gym.envs.core import observation_names
 
-    from .observation import env_config
-
-    trained = observation_names(env_config(trained_scenario), mode)
-    target = observation_names(env_config(target_scenario), mode)
+    trained = observation_names(trained_scenario.env_config, mode)
+    target = observation_names(target_scenario.env_config, mode)
     if trained == target:
         return agent
     return ObservationAdapter(agent, observation_map(trained, target))

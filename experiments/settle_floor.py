@@ -48,10 +48,9 @@ BASELINES = {"paper": ("ramp", "ramp_tuned", "sine", "chirp", "prbs", "multisine
 
 def estimator_of(scenario):
     """The estimator configuration the scenario's environment runs."""
-    from hyst_gym.envs.config import EnvConfig
     from hyst_gym.envs.core import estimator_config
 
-    return estimator_config(EnvConfig(**scenario.settings))
+    return estimator_config(scenario.env_config)
 
 
 def bound_grid(scenario) -> np.ndarray:

@@ -5,7 +5,6 @@ import pytest
 
 from baselines.agents import Agent
 from baselines.evaluation import run_episodes
-from baselines.observation import env_config
 from baselines.scenarios import SCENARIOS
 from baselines.transfer import ObservationAdapter, adapt_agent, observation_map
 from hyst_gym.envs.core import observation_names
@@ -39,8 +38,8 @@ def test_same_layout_is_left_alone():
 
 def test_policy_of_the_first_order_plant_sees_its_own_layout_on_the_fem_rod():
     paper, fem = SCENARIOS["paper"], SCENARIOS["paper_fem"]
-    trained = observation_names(env_config(paper), "excitation")
-    target = observation_names(env_config(fem), "excitation")
+    trained = observation_names(paper.env_config, "excitation")
+    target = observation_names(fem.env_config, "excitation")
     assert len(target) == len(trained) + 1  # the rod also reports the tip velocity
 
     direct, inner = _Recorder(), _Recorder()
