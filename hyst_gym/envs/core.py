@@ -221,21 +221,26 @@ class BatchSimulator:
         self.truncation_steps = config.episode_steps if truncation_steps is None else int(truncation_steps)
         if self.truncation_steps < 1:
             raise ValueError(f"max_episode_steps must be >= 1, got {truncation_steps!r}")
-        n = self.n
         self.model = config.transducer.discretize(config.dt)
         self.scales = output_scales(config, self.model)
         self.n_outputs = self.scales.shape[0]
         self.obs_names = observation_names(config, mode)
         self.obs_low, self.obs_high = observation_bounds(config, mode)
         self.action_size = action_size(mode)
-        hyst = config.hysteresis
-        self._k = np.full(n, hyst.k)
-        self._alpha = np.full(n, hyst.alpha)
-        self._Ms = np.full(n, hyst.Ms)
-        self._c = np.full(n, hyst.c)
-        self._kind = hyst.kind
+        self.record = record
+        self.history: list[list[dict]] = [[] for _ in range(self.n)]
+        self._make_estimator()
+        self._allocate_plant()
+        self._allocate_noise()
+        self._allocate_step_outputs()
+        self._plant_params = self._make_plant_params()
+        self._build_kernel_args()
+
+    def _make_estimator(self):
+        """The estimator (Excitation) or the bare model bank (the agent estimates) the env runs."""
+        config, n = self.config, self.n
         self.est_config = estimator_config(config)
-        if mode == EXCITATION:
+        if self.mode == EXCITATION:
             self.estimator = make_estimator(config.estimator, self.est_config, n)
             self.bank = self.estimator.bank
             self._eps = self.est_config.eps
@@ -244,12 +249,19 @@ class BatchSimulator:
             self.bank = ModelBank(self.est_config, n)
         plant = self.est_config.plant
         self._pe_gain = plant.gain if isinstance(plant, FirstOrderPlant) else 1.0
-        thermal = config.thermal
-        self._decay = math.exp(-config.dt / thermal.time_constant)
-        self._power_per_h2 = thermal.power_per_square_field
-        # state
+
+    def _allocate_plant(self):
+        """The true plants' state (n sub-envs), set by :meth:`reset`."""
+        config, n = self.config, self.n
+        hyst = config.hysteresis
+        self._k = np.full(n, hyst.k)
+        self._alpha = np.full(n, hyst.alpha)
+        self._Ms = np.full(n, hyst.Ms)
+        self._c = np.full(n, hyst.c)
+        self._kind = hyst.kind
         self.field = np.zeros(n)
         self.magnetization = np.zeros(n)
+        self._magnetization_prev = np.zeros(n)
         self.state = self.model.initial_state(n)
         self._state_next = np.empty_like(self.state)
         self.temperature = np.zeros(n)
@@ -261,7 +273,10 @@ class BatchSimulator:
         self.measured = np.zeros((n, self.n_outputs))
         self.measured_temperature = np.zeros(n)
         self.prbs_bits = np.zeros((n, int(math.ceil(config.episode_duration / config.schedule_period)) + 1))
-        # random streams
+
+    def _allocate_noise(self):
+        """Per-sub-env random streams and the pre-drawn measurement noise blocks."""
+        config, n = self.config, self.n
         self.episode_rngs: list = [None] * n
         self.noise_rngs: list = [None] * n
         self._noise_width = self.n_outputs + (1 if config.temperature_sensor else 0)
@@ -270,11 +285,28 @@ class BatchSimulator:
         self._noise_pos = np.full(n, NOISE_BLOCK, dtype=np.int64)
         self._noise_sigma = np.concatenate([config.output_noise * self.scales,
                                             [config.temperature_sensor_noise] if config.temperature_sensor else []])
+
+    def _allocate_step_outputs(self):
+        """What a step writes besides the plant: rewards, terminations, observations, info, scratch."""
+        config, n = self.config, self.n
         self._rows = np.arange(n)
         self._all_active = np.ones(n, dtype=bool)
-        self._magnetization_prev = np.zeros(n)
-        transducer = self.model
-        self._plant_params = PlantParams(
+        self._out = {"reward": np.zeros(n), "terminated": np.zeros(n, dtype=bool),
+                     "truncated": np.zeros(n, dtype=bool), "error": np.zeros(n), "penalty": np.zeros(n),
+                     "stroke": np.zeros(n)}
+        self._obs = np.zeros((n, len(self.obs_names)), dtype=np.float32)
+        self._pe = (np.zeros(n), np.zeros(n), np.zeros(n))
+        self._gap_norm = math.log1p(2.0 * config.hysteresis.Ms)
+        self.info_array = np.zeros((len(INFO_KEYS), n))
+        self._theta = np.zeros(n)
+        self._obs_fresh = False
+
+    def _make_plant_params(self) -> PlantParams:
+        """The fixed data of :func:`~.kernels.plant_step`: hysteresis, transducer, thermal model, noise."""
+        config, transducer, thermal = self.config, self.model, self.config.thermal
+        self._decay = math.exp(-config.dt / thermal.time_constant)
+        self._power_per_h2 = thermal.power_per_square_field
+        return PlantParams(
             k=self._k, alpha=self._alpha, Ms=self._Ms, c=self._c, kind=self._kind,
             max_field_step=config.max_field_step, field_limit=config.field_limit,
             max_change=config.max_field_change, phi=transducer.phi, gamma0=transducer.gamma0,
@@ -286,18 +318,6 @@ class BatchSimulator:
             power_per_h2=self._power_per_h2, thermal_resistance=thermal.thermal_resistance,
             tau=thermal.time_constant, a_reference=thermal.a_reference, t_reference=thermal.reference_temperature,
             noise_sigma=self._noise_sigma, noisy=self._noisy, temperature_sensor=config.temperature_sensor)
-        self._out = {"reward": np.zeros(n), "terminated": np.zeros(n, dtype=bool),
-                     "truncated": np.zeros(n, dtype=bool), "error": np.zeros(n), "penalty": np.zeros(n),
-                     "stroke": np.zeros(n)}
-        self._obs = np.zeros((n, len(self.obs_names)), dtype=np.float32)
-        self._pe = (np.zeros(n), np.zeros(n), np.zeros(n))
-        self._gap_norm = math.log1p(2.0 * config.hysteresis.Ms)
-        self.record = record
-        self.history: list[list[dict]] = [[] for _ in range(n)]
-        self.info_array = np.zeros((len(INFO_KEYS), n))
-        self._theta = np.zeros(n)
-        self._obs_fresh = False
-        self._build_kernel_args()
 
     def _build_kernel_args(self):
         """The named state of the compiled step kernels (live arrays, changed in place), and
