@@ -175,11 +175,13 @@ def summarize_group(rows):
 
 
 def reliability(rows):
-    """Confidence bins against the share of right verdicts (ambiguous-with-truth counts as right)."""
+    """Confidence bins against the share of verdicts exactly right (``exact``) and right or
+    ambiguous with the truth listed (``right``)."""
     table = []
     for lo, hi in zip(BINS[:-1], BINS[1:]):
         group = [r for r in rows if lo <= float(r["confidence"]) < hi]
         table.append({"confidence": [lo, min(hi, 1.0)], "n": len(group),
+                      "exact": _share(group, lambda r: r["outcome"] == "right"),
                       "right": _share(group, lambda r: r["outcome"] in ("right", "ambiguous_with_truth"))})
     return table
 
@@ -221,9 +223,11 @@ def markdown(summary):
                          f"{_pct(e['true_effect_improvement_median'])} / {_pct(e['true_effect_improvement_min'])}")
             lines.append(f"| {effect} | {e['n']} | {_pct(e['right'])} | {_pct(e['right_or_ambiguous_with_truth'])} | "
                          f"{verdicts} | {reduction} |")
-    lines += ["", "## Reliability of `confidence` (all recordings)", "", "| confidence | n | right |", "|---|---|---|"]
+    lines += ["", "## Reliability of `confidence` (all recordings)", "",
+              "| confidence | n | exactly right | right or ambiguous with truth |", "|---|---|---|---|"]
     for row in summary["reliability"]:
-        lines.append(f"| {row['confidence'][0]:.1f}-{row['confidence'][1]:.1f} | {row['n']} | {_pct(row['right'])} |")
+        lines.append(f"| {row['confidence'][0]:.1f}-{row['confidence'][1]:.1f} | {row['n']} | {_pct(row['exact'])} | "
+                     f"{_pct(row['right'])} |")
     return "\n".join(lines) + "\n"
 
 
@@ -255,7 +259,9 @@ def write_outputs(summary, rows):
     table = [r for r in summary["reliability"] if r["n"]]
     centers = [0.5 * sum(r["confidence"]) for r in table]
     ax.plot([0, 1], [0, 1], color="0.6", lw=0.8, ls="--")
-    ax.plot(centers, [r["right"] for r in table], "o-")
+    ax.plot(centers, [r["exact"] for r in table], "o-", label="exactly right")
+    ax.plot(centers, [r["right"] for r in table], "s--", ms=4, label="or ambiguous with truth")
+    ax.legend(fontsize=7, loc="lower right")
     for c, r in zip(centers, table):
         ax.annotate(str(r["n"]), (c, r["right"]), textcoords="offset points", xytext=(4, -10), fontsize=8)
     ax.set(xlabel="confidence (bin centre)", ylabel="share right", ylim=(0, 1.05), title="Reliability of confidence")

@@ -1,0 +1,39 @@
+"""The concealed study's scoring: outcomes per verdict and the reliability table's two shares."""
+
+import pytest
+
+from experiments.diagnose_concealed import BINS, cases, outcome, reliability
+
+
+@pytest.mark.parametrize("effect, in_vocabulary, verdict, tied, expected", [
+    ("field_bias", True, "field_bias", [], "right"),
+    ("field_bias", True, "ambiguous", ["field_bias", "small_loop"], "ambiguous_with_truth"),
+    ("field_bias", True, "ambiguous", ["sensor_lag", "small_loop"], "ambiguous_without_truth"),
+    ("field_bias", True, "small_loop", [], "wrong_name"),
+    ("field_bias", True, "none", [], "missed"),
+    ("none", True, "none", [], "right"),
+    ("none", True, "small_loop", [], "wrong_name"),          # a false alarm
+    ("two_phase_rod", False, "unexplained", [], "right"),     # outside the vocabulary
+    ("two_phase_rod", False, "small_loop", [], "wrong_name"),
+])
+def test_outcome(effect, in_vocabulary, verdict, tied, expected):
+    assert outcome(effect, in_vocabulary, verdict, tied) == expected
+
+
+def test_reliability_counts_exact_and_ambiguous_with_truth_separately():
+    rows = [{"confidence": str(c), "outcome": o} for c, o in
+            [(0.95, "right"), (0.97, "ambiguous_with_truth"), (0.91, "unexplained"), (0.99, "right"),
+             (0.1, "missed"), (1.0, "right")]]
+    table = {tuple(r["confidence"]): r for r in reliability(rows)}
+    top = table[(0.9, 1.0)]  # confidence 1.0 falls in the last bin, whose upper edge is just above 1
+    assert top["n"] == 5 and top["exact"] == pytest.approx(3 / 5) and top["right"] == pytest.approx(4 / 5)
+    assert table[(0.0, 0.2)]["n"] == 1 and table[(0.0, 0.2)]["exact"] == 0.0
+    assert sum(r["n"] for r in table.values()) == len(rows) and len(table) == len(BINS) - 1
+
+
+def test_every_vocabulary_effect_is_concealed_by_both_generators():
+    from hyst_gym.diagnose import EFFECTS
+
+    todo = cases(("own", "independent"), ("both",), 1, 100)
+    for generator in ("own", "independent"):
+        assert {e for g, _, e, inside, _ in todo if g == generator and inside} >= set(EFFECTS) | {"none"}
