@@ -33,8 +33,7 @@ import numpy as np
 from numba import njit
 
 from ..physics.constants import ROOM_TEMPERATURE
-from ..physics.hysteresis import (_midpoint_substep, advance_shared, advance_shared_small_loop, magnetization_slope,
-                                  substep_count)
+from ..physics.hysteresis import advance_one, advance_shared, advance_shared_small_loop, magnetization_slope
 from ..physics.linear_system import first_order_hold, lti_step
 from ..physics.thermal import a_law_kernel, mean_square_linear_kernel
 
@@ -45,16 +44,9 @@ AMBIENT_TEMPERATURE = ROOM_TEMPERATURE  # K, reference temperature of the fitted
 
 @njit(cache=True)
 def _advance(m, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step):
-    # One member, scalar: the substeps and the midpoint rule of (6) are the physics layer's
-    # (substep_count, _midpoint_substep), so a member gives the bank kernel's numbers.
-    change = field_to - field_from
-    if change == 0.0:
-        return m
-    n = substep_count(change, max_field_step)
-    step = change / n
-    delta = 1.0 if change > 0.0 else -1.0
-    for s in range(n):
-        m = _midpoint_substep(field_from + s * step, m, step, delta, a, k, alpha, Ms, c, kind)
+    # One member, scalar: the physics layer's substeps and midpoint rule of (6), so a member
+    # gives the bank kernel's numbers.
+    m, _ = advance_one(m, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step)
     return m
 
 

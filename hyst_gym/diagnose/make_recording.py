@@ -46,12 +46,13 @@ from ..physics.fem import FEMRod
 from ..physics.transducers import RodParams
 from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, lti_response, second_order_system, simulate_members,
                       varying_stiffness_response)
+from ..physics.constants import PAPER_COUPLING
 from .model import EFFECTS, PAPER_CHAT, PAPER_KHAT
 from .recording import Recording, write_recording
 
 GENERATOR_EFFECTS = EFFECTS + ("none",)
 OVERSAMPLE = 4
-PAPER_ZETAHAT = 1.3724e-2  # m/s^2 per A/m, eq. (13)
+PAPER_ZETAHAT = PAPER_COUPLING  # m/s^2 per A/m, eq. (13)
 
 #: Rod data (paper §2.2) used for rod_dynamics, each drawn within +-5 %; the tip mass and the
 #: Kelvin-Voigt damping cD are drawn separately (see :func:`_rod_state_space`).

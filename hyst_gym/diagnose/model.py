@@ -47,6 +47,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..physics.fem import FEMRod
+from ..physics.constants import PAPER_DAMPING, PAPER_STIFFNESS
 from ..physics.transducers import RodParams
 from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, first_order_system, lti_response,
                       second_order_system, simulate_members, step_classes, step_lti,
@@ -70,8 +71,8 @@ EFFECT_PARAMETERS = {
     "small_loop": ("chi_r",),
 }
 #: Paper values of the lumped coefficients (13).
-PAPER_CHAT = 7.8899e3   # 1/s
-PAPER_KHAT = 6.4251e7   # 1/s^2
+PAPER_CHAT = PAPER_DAMPING     # 1/s
+PAPER_KHAT = PAPER_STIFFNESS   # 1/s^2
 PAPER_MS = 7.65e5       # A/m
 #: Default tolerance on the lumped mechanics (khat, chat): the fit keeps each within a factor
 #: of this of its nominal value (the paper's (13), or ``khat``/``chat`` in the recording's

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..physics.constants import ROOM_TEMPERATURE
 from .fit import FitResult
 from .model import EFFECT_PARAMETERS, slope_factor
 
@@ -93,7 +94,7 @@ def _verdict_words(report) -> str:
         mean_sq = float(np.mean(rec.field ** 2))
         extra = (f" (steady-state temperature rise at the record's mean H^2: "
                  f"{values['heating'] * mean_sq * values['tau_th']:.3g} K; a(T) slope a/T_amb = "
-                 f"{values['a'] / 293.15:.4g} A/m per K)")
+                 f"{values['a'] / ROOM_TEMPERATURE:.4g} A/m per K)")
     if chosen.effect == "quadratic_magnetostriction" and values.get("zeta_q"):
         extra = (f" (an M^2 law: zetahat/(2*zeta_q) = {values['zetahat'] / (2 * values['zeta_q']):.4g} A/m "
                  f"is the bias magnetization it implies)") if "zetahat" in values else ""

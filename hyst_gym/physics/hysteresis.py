@@ -274,8 +274,14 @@ def magnetization_slope(field, magnetization, delta, a, k, alpha, Ms, c, kind):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _midpoint_substep(field, magnetization, step, delta, a, k, alpha, Ms, c, kind):
-    return _midpoint(field, magnetization, step, delta, lane_constants(a, k, alpha, Ms, c, delta), kind)
+def advance_one(magnetization, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step):
+    """One model moved from ``field_from`` to ``field_to`` (A/m): returns its new M (A/m) and the
+    number of substeps taken (0 when the field did not move). The arithmetic of every layout."""
+    n, step, delta = monotone_substeps(field_to - field_from, max_field_step)
+    lane = lane_constants(a, k, alpha, Ms, c, delta)
+    for s in range(n):
+        magnetization = _midpoint(field_from + s * step, magnetization, step, delta, lane, kind)
+    return magnetization, n
 
 
 @njit(cache=True, inline="always")
@@ -301,7 +307,7 @@ def bank_constants(a, k, alpha, Ms, c):
     out = np.empty((5, a.shape[0]))
     for b in range(a.shape[0]):
         out[0, b] = 1.0 / a[b]
-        out[1, b] = Ms[b] * out[0, b]  # as in _midpoint_substep, so both layouts round alike
+        out[1, b] = Ms[b] * out[0, b]  # as in lane_constants, so both layouts round alike
         out[2, b] = k[b]
         out[3, b] = alpha[b] / (1.0 - c[b])
         out[4, b] = alpha[b] * c[b]
@@ -356,16 +362,8 @@ def advance_each(magnetization, field_from, field_to, a, k, alpha, Ms, c, kind, 
     """
     total = 0
     for b in range(magnetization.shape[0]):
-        change = field_to[b] - field_from[b]
-        if change == 0.0:
-            continue
-        n = substep_count(change, max_field_step)
-        step = change / n
-        delta = 1.0 if change > 0.0 else -1.0
-        m = magnetization[b]
-        for s in range(n):
-            m = _midpoint_substep(field_from[b] + s * step, m, step, delta,
-                                  a[b], k[b], alpha[b], Ms[b], c[b], kind)
+        m, n = advance_one(magnetization[b], field_from[b], field_to[b], a[b], k[b], alpha[b], Ms[b], c[b], kind,
+                           max_field_step)
         magnetization[b] = m
         total += n
     return total
@@ -535,6 +533,6 @@ def simulate_magnetization(field, time=None, *, max_field_step: float = DEFAULT_
 
 __all__ = [
     "DEFAULT_MAX_FIELD_STEP", "HysteresisParams", "HysteresisBatch", "ISING", "LANGEVIN", "SMALL_LOOP_EXTENSION",
-    "advance_each", "advance_shared", "advance_shared_small_loop", "simulate_shared_small_loop", "magnetization_slope", "simulate_batch",
+    "advance_each", "advance_one", "advance_shared", "advance_shared_small_loop", "simulate_shared_small_loop", "magnetization_slope", "simulate_batch",
     "simulate_magnetization", "simulate_shared", "substep_count", "validate_hysteresis_parameters",
 ]

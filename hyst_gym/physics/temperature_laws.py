@@ -43,6 +43,8 @@ from typing import Tuple
 
 import numpy as np
 
+from .thermal import a_law
+
 #: 0 degrees C in K.
 ZERO_CELSIUS_K = 273.15
 #: Curie temperature of the gadolinium sample of ``data/real/gd-temperature``, K (18.3 C).
@@ -66,7 +68,7 @@ def _kelvin(T):
 
 def linear_in_temperature(T, ref_value, T_ref):
     """Eq. (4): ``ref_value * T / T_ref``; T and T_ref in K, output in the unit of ref_value."""
-    return ref_value * _kelvin(T) / float(T_ref)
+    return a_law(ref_value, _kelvin(T), float(T_ref))
 
 
 def critical_power_law(T, value0, Tc, beta):
