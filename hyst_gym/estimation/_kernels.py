@@ -92,6 +92,7 @@ def advance_bank(bank, field_to, params):
     kernel :func:`advance_shared`, so a bank node equals a single-model run bit for bit;
     ``bank.field`` then holds ``field_to``. Returns the number of model substeps taken.
     """
+    bank, params = BankState(*bank), BankParams(*params)  # plain tuples from Python: see above
     total = 0
     magnetization = bank.magnetization
     G = magnetization.shape[1]

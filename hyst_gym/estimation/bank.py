@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..physics.hysteresis import HysteresisBatch
-from ._kernels import BankParams, BankState, advance_bank, interpolate_bank
+from ._kernels import BankParams, BankState, advance_bank, as_kernel_tuples, interpolate_bank
 from .config import EstimatorConfig
 
 
@@ -42,6 +42,9 @@ class ModelBank:
         #: the fixed data of the kernels: see :class:`~._kernels.BankParams`
         self.kernel_params = BankParams(self.grid, params.a, params.k, params.alpha, params.Ms, params.c,
                                         params.kind, float(config.max_field_step))
+        # plain tuples of the same live arrays for the per-step call: numba's dispatcher types a
+        # plain tuple in C and a namedtuple in Python (_kernels, above BankState)
+        self._kernel_tuples = as_kernel_tuples(self.kernel_state, self.kernel_params)
 
     @property
     def magnetization(self) -> np.ndarray:
@@ -64,7 +67,7 @@ class ModelBank:
 
     def advance(self, field: np.ndarray) -> int:
         """Drive each system's bank to its new field (A/m, shape (E,)); returns model substeps."""
-        return advance_bank(self.kernel_state, field, self.kernel_params)
+        return advance_bank(self._kernel_tuples[0], field, self._kernel_tuples[1])
 
     def evaluate(self, theta, out_value=None, out_slope=None, out_curvature=None):
         """f, df/dtheta, d2f/dtheta2 at ``theta`` (A/m, shape (E,)); each (E,)."""
