@@ -1,6 +1,6 @@
 """experiments/first_step_time.py: the README sentence states both timings, the load and the notice."""
 
-from experiments.first_step_time import PROBE, markdown
+from experiments.first_step_time import markdown
 
 
 def test_markdown_states_both_runs_the_load_and_the_compile_notice():
@@ -9,8 +9,3 @@ def test_markdown_states_both_runs_the_load_and_the_compile_notice():
     assert "**29.9 s** the first time" in text and "**1.1 s** afterwards" in text
     assert "1-min load 1.0" in text and "\"hyst-gym: compiling kernels\"" in text
 
-
-def test_probe_times_a_real_first_step():
-    # the probe is run as a script in a fresh interpreter; it must make, reset and step the env
-    compile(PROBE, "<probe>", "exec")
-    assert "gym.make(\"hyst_gym:hyst_gym/Excitation-v0\")" in PROBE and "env.step(" in PROBE
