@@ -124,9 +124,8 @@ def make_recording(effect: str = "none", seed: int = 0, strength: float = 1.0, o
     return recording, sidecar
 
 
-def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: float = 1.0, output: str = "both",
-                              n_samples: int = 5000, broadband: bool | None = None) -> tuple[Recording, dict, dict]:
-    """As :func:`make_recording`, plus the true parameters (for tests and studies only)."""
+def _check_arguments(effect, seed, strength, output, n_samples):
+    """One-line errors naming the CLI flag of a bad argument."""
     if effect not in GENERATOR_EFFECTS:
         raise ValueError(f"--effect must be one of {', '.join(GENERATOR_EFFECTS)}, got {effect!r}")
     if output not in ("magnetization", "displacement", "both"):
@@ -139,6 +138,80 @@ def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: flo
         raise ValueError(f"--seed must be >= 0, got {seed!r}")
     if int(n_samples) < 400:
         raise ValueError(f"--samples must be >= 400, got {n_samples!r}")
+
+
+def _magnetic_row(effect, strength, effect_rng, material, field, fine_time, amplitude):
+    """The member row (:data:`MAGNETIC_COLUMNS`) of the true material with the magnetic effect."""
+    row = dict(material, H0=0.0, k_e=0.0, heating=0.0, tau_th=1.0, beta_Ms=0.0, chi_r=0.0)
+    kind = 1 if material["curve"] == "langevin" else 0
+    del row["curve"]
+    duration = fine_time[-1]
+    if effect == "field_bias":
+        row["H0"] = strength * effect_rng.uniform(0.1, 0.2) * amplitude * effect_rng.choice([-1, 1])
+    if effect == "small_loop":
+        # a reversible low-field susceptibility of 40-80 % of the anhysteretic's initial slope Ms/a:
+        # the span of the fits to the measured ferrite loops (experiments/real_loops.py); much less
+        # is absorbed by the base model's own reversible term c*Man'
+        row["chi_r"] = strength * effect_rng.uniform(0.4, 0.8) * row["Ms"] / row["a"]
+    if effect == "eddy_current":
+        plain = simulate_members(fine_time, field, np.array([[row[c_] for c_ in MAGNETIC_COLUMNS]]), kind, 25.0,
+                                 AMBIENT_TEMPERATURE)[:, 0]
+        rate = np.abs(np.diff(plain)) / np.diff(fine_time)
+        row["k_e"] = strength * 0.05 * amplitude / float(np.percentile(rate, 99))
+    if effect == "thermal_drift":
+        tau = effect_rng.uniform(0.5, 2.0) * duration
+        rise = 25.0 * strength
+        row["tau_th"] = tau
+        row["heating"] = rise / (float(np.mean(field ** 2)) * tau * (1 - np.exp(-duration / tau)))
+        row["beta_Ms"] = 1e-3
+    return row, kind
+
+
+def _displacement(effect, strength, effect_rng, fine_time, magnetization, M0, Ms, mechanics):
+    """Tip displacement (m) of the lumped transducer (13), or of the effect's mechanics."""
+    chat, khat, zetahat = mechanics
+    if effect == "rod_dynamics":
+        A, B, C, static = _rod_state_space(effect_rng, strength=strength)
+        # same static gain as the lumped model it replaces: zetahat/khat per unit (M - M0)
+        gain = zetahat / khat / static
+        return lti_response(fine_time, gain * (magnetization - M0), A, B, C, start="steady")
+    if effect == "quadratic_magnetostriction":
+        ref = max(abs(M0), 0.3 * Ms)
+        linear = 2 * ref * (magnetization - M0)
+        forcing = zetahat / (2 * ref) * ((1 - strength) * linear + strength * (magnetization ** 2 - M0 ** 2))
+    else:
+        forcing = zetahat * (magnetization - M0)
+    if effect == "delta_e":
+        delta_e = strength * effect_rng.uniform(0.3, 0.8)
+        relative = delta_e * ((magnetization / Ms) ** 2 - (M0 / Ms) ** 2)
+        return varying_stiffness_response(fine_time, forcing, relative, khat, chat)
+    A, B, C = second_order_system(khat, chat, 1.0)
+    return lti_response(fine_time, forcing, A, B, C, start="steady")
+
+
+def _sensed(effect, strength, effect_rng, noise_rng, fine_time, fs, outputs, output, noise_rel):
+    """The recorded channels: sensor lag (if concealed), decimation to the sample rate, noise."""
+    if effect == "sensor_lag":
+        tau = strength * effect_rng.uniform(2.0, 4.0) / fs
+        if tau > 0:
+            outputs = {ch: lti_response(fine_time, sig, [[-1 / tau]], [1 / tau], [1.0], start="steady")
+                       for ch, sig in outputs.items()}
+    keep = slice(None, None, OVERSAMPLE)
+    channels = ("magnetization", "displacement") if output == "both" else (output,)
+    recorded = {}
+    for ch in channels:
+        clean = outputs[ch][keep]
+        recorded[ch] = clean + noise_rel * float(np.ptp(clean)) * noise_rng.standard_normal(clean.size)
+    return recorded
+
+
+def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: float = 1.0, output: str = "both",
+                              n_samples: int = 5000, broadband: bool | None = None) -> tuple[Recording, dict, dict]:
+    """As :func:`make_recording`, plus the true parameters (for tests and studies only).
+
+    Three random streams per seed: the conditions (rate, drive, material, mechanics, noise), the
+    effect's parameters, and the noise, so that an effect changes nothing else in the record."""
+    _check_arguments(effect, seed, strength, output, n_samples)
     n_samples = int(n_samples)
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 6]))
     fs = rng.uniform(40e3, 60e3)
@@ -161,63 +234,17 @@ def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: flo
     zetahat = PAPER_ZETAHAT * rng.uniform(0.8, 1.25)
     noise_rel = rng.uniform(0.5e-3, 1.5e-3)
     effect_rng = np.random.default_rng(np.random.SeedSequence([int(seed), 6, 1]))
-    row = dict(a=a, k=k, alpha=alpha, Ms=Ms, c=c, H0=0.0, k_e=0.0, heating=0.0, tau_th=1.0, beta_Ms=0.0, chi_r=0.0)
-    duration = fine_time[-1]
-    kind = 1 if curve == "langevin" else 0
-    if effect == "field_bias":
-        row["H0"] = strength * effect_rng.uniform(0.1, 0.2) * amplitude * effect_rng.choice([-1, 1])
-    if effect == "small_loop":
-        # a reversible low-field susceptibility of 40-80 % of the anhysteretic's initial slope Ms/a:
-        # the span of the fits to the measured ferrite loops (experiments/real_loops.py); much less
-        # is absorbed by the base model's own reversible term c*Man'
-        row["chi_r"] = strength * effect_rng.uniform(0.4, 0.8) * Ms / a
-    if effect == "eddy_current":
-        plain = simulate_members(fine_time, field, np.array([[row[c_] for c_ in MAGNETIC_COLUMNS]]), kind, 25.0,
-                                 AMBIENT_TEMPERATURE)[:, 0]
-        rate = np.abs(np.diff(plain)) / np.diff(fine_time)
-        row["k_e"] = strength * 0.05 * amplitude / float(np.percentile(rate, 99))
-    if effect == "thermal_drift":
-        tau = effect_rng.uniform(0.5, 2.0) * duration
-        rise = 25.0 * strength
-        row["tau_th"] = tau
-        row["heating"] = rise / (float(np.mean(field ** 2)) * tau * (1 - np.exp(-duration / tau)))
-        row["beta_Ms"] = 1e-3
+    material = dict(a=a, k=k, alpha=alpha, Ms=Ms, c=c, curve=curve)
+    row, kind = _magnetic_row(effect, strength, effect_rng, material, field, fine_time, amplitude)
     magnetization = simulate_members(fine_time, field, np.array([[row[c_] for c_ in MAGNETIC_COLUMNS]]), kind,
                                      25.0, AMBIENT_TEMPERATURE)[:, 0]
     M0 = float(np.median(magnetization))
-    if effect == "rod_dynamics":
-        A, B, C, static = _rod_state_space(effect_rng, strength=strength)
-        # same static gain as the lumped model it replaces: zetahat/khat per unit (M - M0)
-        gain = zetahat / khat / static
-        displacement = lti_response(fine_time, gain * (magnetization - M0), A, B, C, start="steady")
-    else:
-        if effect == "quadratic_magnetostriction":
-            ref = max(abs(M0), 0.3 * Ms)
-            linear = 2 * ref * (magnetization - M0)
-            forcing = zetahat / (2 * ref) * ((1 - strength) * linear + strength * (magnetization ** 2 - M0 ** 2))
-        else:
-            forcing = zetahat * (magnetization - M0)
-        if effect == "delta_e":
-            delta_e = strength * effect_rng.uniform(0.3, 0.8)
-            relative = delta_e * ((magnetization / Ms) ** 2 - (M0 / Ms) ** 2)
-            displacement = varying_stiffness_response(fine_time, forcing, relative, khat, chat)
-        else:
-            A, B, C = second_order_system(khat, chat, 1.0)
-            displacement = lti_response(fine_time, forcing, A, B, C, start="steady")
-    outputs = {"magnetization": magnetization, "displacement": displacement}
-    if effect == "sensor_lag":
-        tau = strength * effect_rng.uniform(2.0, 4.0) / fs
-        if tau > 0:
-            outputs = {ch: lti_response(fine_time, sig, [[-1 / tau]], [1 / tau], [1.0], start="steady")
-                       for ch, sig in outputs.items()}
-    keep = slice(None, None, OVERSAMPLE)
+    displacement = _displacement(effect, strength, effect_rng, fine_time, magnetization, M0, Ms,
+                                 (chat, khat, zetahat))
     noise_rng = np.random.default_rng(np.random.SeedSequence([int(seed), 6, 2]))
-    channels = ("magnetization", "displacement") if output == "both" else (output,)
-    recorded = {}
-    for ch in channels:
-        clean = outputs[ch][keep]
-        recorded[ch] = clean + noise_rel * float(np.ptp(clean)) * noise_rng.standard_normal(clean.size)
-    recording = Recording(time=time, field=field[keep], source=f"make-recording seed {seed}", **recorded)
+    recorded = _sensed(effect, strength, effect_rng, noise_rng, fine_time, fs,
+                       {"magnetization": magnetization, "displacement": displacement}, output, noise_rel)
+    recording = Recording(time=time, field=field[::OVERSAMPLE], source=f"make-recording seed {seed}", **recorded)
     sidecar = {"material": "Terfenol-D (synthetic)", "notes": f"synthetic recording from hyst-gym, seed {seed}"}
     truth = dict(row, rho=rho, curve=curve, chat=chat, khat=khat, zetahat=zetahat, M0=M0,
                  noise_rel=noise_rel, sample_rate=fs)
