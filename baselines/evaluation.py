@@ -52,29 +52,40 @@ def run_episodes(agent, spec: EpisodeSpec, seeds, band_fraction: float = 1e-3, m
     return records, traces
 
 
-def _run_batch(agent, spec, seeds, band_fraction, keep_traces):
+def play_batch(agent, spec: EpisodeSpec, seeds, extra=None):
+    """Play ``agent`` on one episode per seed in the native vector env, deterministic actions.
+
+    Returns ``(columns, lengths)``: the benchmark's info fields per step (``step_info``), plus
+    whatever ``extra(observations, infos)`` returns per step (a dict of (n,) arrays), each an
+    array (T, n) with ``nan`` after the episode ended; and each episode's length in steps.
+    """
     from .environment import reset_vector_env
     n = len(seeds)
     env = make_vector_env(spec, n)
+    columns, lengths = {}, np.zeros(n, dtype=np.int64)
     try:
         agent.reset(seeds[0])
         observations, infos = reset_vector_env(env, seeds)
         episode_start = np.ones(n, dtype=bool)
         active = np.ones(n, dtype=bool)
-        columns = {key: [] for key in ("time", "field", "a_estimate", "a_true", "pe_integrand", "curvature_sign")}
-        lengths = np.zeros(n, dtype=np.int64)
         while active.any():
             actions, _ = agent.predict(observations, episode_start=episode_start, deterministic=True)
             observations, _, terminated, truncated, infos = env.step(np.asarray(actions, dtype=np.float32))
             episode_start = np.zeros(n, dtype=bool)
             values = step_info(infos, n)
-            for key in columns:
-                columns[key].append(np.where(active, values[key], np.nan))
+            if extra is not None:
+                values.update(extra(observations, infos))
+            for key, value in values.items():
+                columns.setdefault(key, []).append(np.where(active, value, np.nan))
             lengths += active
             active &= ~(np.asarray(terminated) | np.asarray(truncated))
     finally:
         env.close()
-    data = {key: np.array(v) for key, v in columns.items()}  # (T, n)
+    return {key: np.array(v) for key, v in columns.items()}, lengths
+
+
+def _run_batch(agent, spec, seeds, band_fraction, keep_traces):
+    data, lengths = play_batch(agent, spec, seeds)
     data["pe_a"], data["pe_b"] = _pe_conditions(data["pe_integrand"], data["curvature_sign"], spec.dt)
     records, traces = [], []
     for i, seed in enumerate(seeds):

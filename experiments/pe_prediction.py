@@ -216,38 +216,24 @@ def concordance(scores, times, observed) -> float:
 
 
 def play(agent, spec, seeds, tuning_column):
-    """Play ``agent`` on one episode per seed in the native vector env, as the benchmark does
-    (:func:`baselines.evaluation.run_episodes`: same env, same seeds, deterministic actions),
-    keeping per step what the tests need: the field, the estimate, the truth a, the plant's own
-    M, the environment's integrand of (22) and the sign of the observed tuning error."""
-    from baselines.environment import make_vector_env, reset_vector_env, step_info
+    """Play ``agent`` on one episode per seed with the benchmark's own episode loop
+    (:func:`baselines.evaluation.play_batch`: same env, same seeds, deterministic actions),
+    keeping per step what the tests need besides the benchmark's fields: the plant's own M and
+    the sign of the observed tuning error."""
+    from baselines.evaluation import play_batch
     from baselines.survival import settle_time
 
     n = len(seeds)
-    env = make_vector_env(spec, n)
-    steps = []
-    try:
-        agent.reset(seeds[0])
-        observations, _ = reset_vector_env(env, seeds)
-        episode_start = np.ones(n, dtype=bool)
-        active = np.ones(n, dtype=bool)
-        while active.any():
-            actions, _ = agent.predict(observations, episode_start=episode_start, deterministic=True)
-            observations, _, terminated, truncated, infos = env.step(np.asarray(actions, dtype=np.float32))
-            episode_start[:] = False
-            row = step_info(infos, n)
-            row["magnetization"] = np.asarray(infos["magnetization"], dtype=np.float64).reshape(n)
-            row["tuning_sign"] = (np.sign(np.asarray(observations, dtype=np.float64)[:, tuning_column])
-                                  if tuning_column is not None else np.zeros(n))
-            row["active"] = active.copy()
-            steps.append(row)
-            active &= ~(np.asarray(terminated) | np.asarray(truncated))
-    finally:
-        env.close()
+
+    def extra(observations, infos):
+        return {"magnetization": np.asarray(infos["magnetization"], dtype=np.float64).reshape(n),
+                "tuning_sign": (np.sign(np.asarray(observations, dtype=np.float64)[:, tuning_column])
+                                if tuning_column is not None else np.zeros(n))}
+
+    columns, lengths = play_batch(agent, spec, seeds, extra)
     episodes = []
     for i, seed in enumerate(seeds):
-        length = int(sum(row["active"][i] for row in steps))
-        trace = {key: np.array([row[key][i] for row in steps[:length]]) for key in steps[0] if key != "active"}
+        trace = {key: column[:lengths[i], i] for key, column in columns.items()}
         trace["seed"] = int(seed)
         trace["settle_time_s"] = settle_time(trace["time"], trace["a_estimate"], trace["a_true"], BAND_FRACTION)
         episodes.append(trace)

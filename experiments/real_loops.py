@@ -183,10 +183,11 @@ def holdout_study(stem, folder=DATA, materials=MATERIALS):
         else:  # the extension's fit starts from the base fit of the same curve and adds its own search
             fit = fit_candidate(rec, bases[curve], extension, weights, scored & ~segment, step)
         fit, good, starts = grid_refits(fit, rec, weights, scored & ~segment)
+        seconds = time.perf_counter() - started
         if extension is None:
-            bases[curve] = fit
-        seconds = time.perf_counter() - started + (base_seconds.get(curve, 0.0) if extension else 0.0)
-        base_seconds.setdefault(curve, seconds)
+            bases[curve], base_seconds[curve] = fit, seconds
+        else:  # the extension's fit needs the base fit first: its time counts too
+            seconds += base_seconds[curve]
         name = variant_name(curve, extension)
         fits[name] = fit
         m = fit.model.magnetization([fit.values])[:, 0]

@@ -33,7 +33,8 @@ import numpy as np
 from numba import njit
 
 from ..physics.constants import ROOM_TEMPERATURE
-from ..physics.hysteresis import advance_one, advance_shared, advance_shared_small_loop, magnetization_slope
+from ..physics.hysteresis import (advance_one, magnetization_slope, simulate_shared,
+                                  simulate_shared_small_loop)
 from ..physics.linear_system import first_order_hold, lti_step
 from ..physics.thermal import a_law_kernel, mean_square_linear_kernel
 
@@ -83,24 +84,25 @@ def simulate_members(time, field, params, kind, max_field_step, ambient):
 
 @njit(cache=True)
 def _simulate_shared_field(field, params, kind, max_field_step, out, columns):
-    # every member starts demagnetized at H = 0 and is brought to the first sample
+    # every member starts demagnetized at H = 0 and is brought to the first sample: the physics
+    # layer's bank trajectory over the field with H = 0 put in front
     a = np.ascontiguousarray(params[:, 0])
     k = np.ascontiguousarray(params[:, 1])
     alpha = np.ascontiguousarray(params[:, 2])
     Ms = np.ascontiguousarray(params[:, 3])
     c = np.ascontiguousarray(params[:, 4])
     chi_r = np.ascontiguousarray(params[:, 10])
-    small_loop = chi_r[0] != 0.0  # the group is all-on or all-off (simulate_members)
-    m = np.zeros(params.shape[0])
-    previous = 0.0
+    from_zero = np.empty(field.shape[0] + 1)
+    from_zero[0] = 0.0
+    from_zero[1:] = field
+    start = np.zeros(params.shape[0])
+    if chi_r[0] != 0.0:  # the group is all-on or all-off (simulate_members)
+        trajectory = simulate_shared_small_loop(from_zero, start, a, k, alpha, Ms, c, chi_r, kind, max_field_step)
+    else:
+        trajectory = simulate_shared(from_zero, start, a, k, alpha, Ms, c, kind, max_field_step)
     for t in range(field.shape[0]):
-        if small_loop:
-            advance_shared_small_loop(m, previous, field[t], a, k, alpha, Ms, c, chi_r, kind, max_field_step)
-        else:
-            advance_shared(m, previous, field[t], a, k, alpha, Ms, c, kind, max_field_step)
-        previous = field[t]
         for i in range(columns.shape[0]):
-            out[t, columns[i]] = m[i]
+            out[t, columns[i]] = trajectory[t + 1, i]
 
 
 @njit(cache=True)

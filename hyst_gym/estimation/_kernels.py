@@ -148,6 +148,17 @@ def interpolate_bank(grid, values, theta, out_value, out_slope, out_curvature):
 
 
 @njit(cache=True)
+def interpolate_rows(grid, values, rows, theta, out_value, out_slope, out_curvature):
+    """:func:`interpolate_bank` at ``theta[i]`` on row ``rows[i]`` of ``values`` (R, G), all (N,):
+    the bank's interpolant evaluated on recorded bank traces (one row per instant)."""
+    for i in range(theta.shape[0]):
+        value, slope, curvature = _interpolate_one(grid, values[rows[i]], theta[i])
+        out_value[i] = value
+        out_slope[i] = slope
+        out_curvature[i] = curvature
+
+
+@njit(cache=True)
 def _lower_hull(xs, ys, n, hull):
     """Andrew's monotone chain on sorted xs[:n]: indices of the lower convex hull.
 

@@ -27,8 +27,8 @@ Everything here works on recorded traces with plain numpy: the bank's node value
 ``f(u(t_k), theta_i)`` (T, G) (:func:`bank_trace` replays a field trace through the
 estimation layer's :class:`~.bank.ModelBank` to get them), the estimate thetahat(t_k) and,
 for the truth-based tests, a(t_k). Values between nodes come from the bank's own C1 cubic
-Hermite interpolant (finite-difference node slopes), re-implemented here in numpy so a
-frozen estimate can be evaluated at every instant of a window at once.
+Hermite interpolant (finite-difference node slopes), the compiled kernel the estimator uses,
+evaluated for a frozen estimate at every instant of a window in one call.
 
 **Truth-free version.** An agent sees the bank but not a. :func:`truth_free_condition`
 replaces ``f(u, a)`` by the edges of the bank's envelope of the candidates that lie at
@@ -49,6 +49,7 @@ from __future__ import annotations
 import numpy as np
 
 from .bank import ModelBank
+from ._kernels import interpolate_rows
 from .config import EstimatorConfig
 
 
@@ -74,23 +75,10 @@ def bank_trace(config: EstimatorConfig, field) -> np.ndarray:
     return out[0] if single else out
 
 
-def node_slopes(grid, values) -> np.ndarray:
-    """Finite-difference slopes d f/d theta at the nodes (A/m per A/m), shape of ``values`` (..., G):
-    centred inside, second-order one-sided at the two ends (the bank's interpolant)."""
-    grid = np.asarray(grid, dtype=np.float64)
-    values = np.asarray(values, dtype=np.float64)
-    if grid.ndim != 1 or grid.size < 3 or values.shape[-1] != grid.size:
-        raise ValueError(f"node_slopes: need a grid of >= 3 nodes and values (..., {grid.size}), got "
-                         f"{grid.shape} and {values.shape}")
-    slopes = np.empty_like(values)
-    slopes[..., 1:-1] = (values[..., 2:] - values[..., :-2]) / (grid[2:] - grid[:-2])
-    slopes[..., 0] = (-3.0 * values[..., 0] + 4.0 * values[..., 1] - values[..., 2]) / (grid[2] - grid[0])
-    slopes[..., -1] = (3.0 * values[..., -1] - 4.0 * values[..., -2] + values[..., -3]) / (grid[-1] - grid[-3])
-    return slopes
-
-
-def interpolate(grid, values, theta, rows=None, slopes=None, derivatives: bool = True):
-    """``(f, df/dtheta, d2f/dtheta2)`` of the bank's cubic Hermite interpolant at ``theta``.
+def interpolate(grid, values, theta, rows=None):
+    """``(f, df/dtheta, d2f/dtheta2)`` of the bank's cubic Hermite interpolant at ``theta``: the
+    estimation layer's own compiled interpolant (:func:`~._kernels.interpolate_rows`), so an
+    estimate here gives the numbers the estimator sees.
 
     Parameters
     ----------
@@ -103,20 +91,17 @@ def interpolate(grid, values, theta, rows=None, slopes=None, derivatives: bool =
     rows : ndarray of int, optional
         Row of ``values`` for each entry of ``theta`` (same shape); default ``arange(R)``
         (then ``theta`` has shape (R,)).
-    slopes : ndarray (R, G), optional
-        :func:`node_slopes` of ``values`` (pass it to save work on repeated calls).
-    derivatives : bool
-        False: return ``(f, None, None)`` (saves work).
 
     Returns
     -------
     three arrays shaped like ``theta``: f (A/m), df/dtheta (dimensionless), d2f/dtheta2 (per A/m).
     """
-    grid = np.asarray(grid, dtype=np.float64)
-    values = np.asarray(values, dtype=np.float64)
+    grid = np.ascontiguousarray(grid, dtype=np.float64)
+    values = np.ascontiguousarray(values, dtype=np.float64)
     theta = np.asarray(theta, dtype=np.float64)
-    if values.ndim != 2 or values.shape[1] != grid.size:
-        raise ValueError(f"interpolate: values must be (R, {grid.size}), got {values.shape}")
+    if values.ndim != 2 or values.shape[1] != grid.size or grid.size < 3:
+        raise ValueError(f"interpolate: values must be (R, {grid.size}) over a grid of >= 3 nodes, got "
+                         f"{values.shape}")
     if rows is None:
         if theta.shape != (values.shape[0],):
             raise ValueError(f"interpolate: theta must be ({values.shape[0]},) without rows, got {theta.shape}")
@@ -126,25 +111,10 @@ def interpolate(grid, values, theta, rows=None, slopes=None, derivatives: bool =
         raise ValueError(f"interpolate: rows {rows.shape} and theta {theta.shape} must have one shape")
     if not np.all(np.isfinite(theta)):
         raise ValueError("interpolate: theta must be finite")
-    if slopes is None:
-        slopes = node_slopes(grid, values)
-    G = grid.size
-    j = np.clip(np.searchsorted(grid, theta, side="right") - 1, 0, G - 2)
-    h = grid[j + 1] - grid[j]
-    flat = rows * G + j  # gathers on the flattened arrays are several times faster than 2-D fancy indexing
-    flat_values, flat_slopes = values.ravel(), np.asarray(slopes).ravel()
-    f0, f1 = flat_values[flat], flat_values[flat + 1]
-    m0, m1 = flat_slopes[flat] * h, flat_slopes[flat + 1] * h
-    u = (theta - grid[j]) / h
-    u2 = u * u
-    u3 = u2 * u
-    value = (2 * u3 - 3 * u2 + 1) * f0 + (u3 - 2 * u2 + u) * m0 + (-2 * u3 + 3 * u2) * f1 + (u3 - u2) * m1
-    if not derivatives:
-        return value, None, None
-    slope = ((6 * u2 - 6 * u) * f0 + (3 * u2 - 4 * u + 1) * m0 + (-6 * u2 + 6 * u) * f1
-             + (3 * u2 - 2 * u) * m1) / h
-    curvature = ((12 * u - 6) * f0 + (6 * u - 4) * m0 + (-12 * u + 6) * f1 + (6 * u - 2) * m1) / (h * h)
-    return value, slope, curvature
+    flat_theta = np.ascontiguousarray(theta.ravel())
+    out = [np.empty(flat_theta.size) for _ in range(3)]
+    interpolate_rows(grid, values, np.ascontiguousarray(rows.ravel(), dtype=np.int64), flat_theta, *out)
+    return tuple(o.reshape(theta.shape) for o in out)
 
 
 def curvature_sign(curvature) -> np.ndarray:
@@ -177,15 +147,14 @@ def frozen_estimate(grid, bank_values, theta_hat, delta_steps: int):
     """The part of :func:`frozen_integrals` that does not depend on a: for every subinterval
     start s, ``f(u(t_k), thetahat(t_s))`` and beta at ``thetahat(t_s)`` over ``k = s..s+delta_steps``.
 
-    Returns ``(rows, f_hat, beta, slopes)``: sample indices (S, W+1), A/m (S, W+1), +-1 (S, W+1)
-    and the bank's node slopes (T, G); pass it as ``frozen=`` to save the work on repeated calls."""
+    Returns ``(rows, f_hat, beta)``: sample indices (S, W+1), A/m (S, W+1) and +-1 (S, W+1);
+    pass it as ``frozen=`` to save the work on repeated calls."""
     grid, bank_values, theta_hat = _check_trace(grid, bank_values, theta_hat, 1.0, delta_steps)
     starts = bank_values.shape[0] - delta_steps
-    slopes = node_slopes(grid, bank_values)
     rows = np.arange(starts)[:, None] + np.arange(delta_steps + 1)[None, :]  # (S, W+1)
     frozen = np.broadcast_to(theta_hat[:starts, None], rows.shape)
-    f_hat, _, curvature = interpolate(grid, bank_values, frozen, rows, slopes)
-    return rows, f_hat, curvature_sign(curvature), slopes
+    f_hat, _, curvature = interpolate(grid, bank_values, frozen, rows)
+    return rows, f_hat, curvature_sign(curvature)
 
 
 def frozen_integrals(grid, bank_values, theta_hat, reference, dt: float, delta_steps: int, gain: float = 1.0,
@@ -234,7 +203,7 @@ def frozen_integrals(grid, bank_values, theta_hat, reference, dt: float, delta_s
                              f"got {ref.shape}")
     if frozen is None:
         frozen = frozen_estimate(grid, bank_values, theta_hat, delta_steps)
-    rows, f_hat, beta, slopes = frozen
+    rows, f_hat, beta = frozen
     if rows.shape != (starts, delta_steps + 1):
         raise ValueError(f"frozen_integrals: frozen was computed for another trace or delta_steps")
     weights = np.full(delta_steps + 1, dt)
@@ -251,11 +220,10 @@ def frozen_integrals(grid, bank_values, theta_hat, reference, dt: float, delta_s
             f_ref = reference_values[rows]
             start_reference = ref[:starts]
         elif ref.shape == (steps,):
-            f_ref = interpolate(grid, bank_values, ref, None, slopes, derivatives=False)[0][rows]
+            f_ref = interpolate(grid, bank_values, ref)[0][rows]
             start_reference = ref[:starts]
         else:
-            f_ref = interpolate(grid, bank_values, np.broadcast_to(ref[:, None], rows.shape), rows, slopes,
-                                derivatives=False)[0]
+            f_ref = interpolate(grid, bank_values, np.broadcast_to(ref[:, None], rows.shape), rows)[0]
             start_reference = ref
         raw = gain * (f_hat - f_ref)
         out.append({"with_beta": (beta * raw) @ weights, "without_beta": raw @ weights,
@@ -525,7 +493,7 @@ def bootstrap_auc(scores, labels, clusters, n_boot: int = 2000, seed: int = 0, l
     return float(lo), float(hi)
 
 
-__all__ = ["bank_trace", "node_slopes", "interpolate", "curvature_sign", "frozen_estimate", "frozen_integrals",
+__all__ = ["bank_trace", "interpolate", "curvature_sign", "frozen_estimate", "frozen_integrals",
            "margin",
            "exists_in_window", "integral_condition", "required_eps0", "candidate_margins",
            "truth_free_condition", "sign_conditions", "roc_auc",

@@ -306,11 +306,13 @@ def bank_constants(a, k, alpha, Ms, c):
     """Per-model constants of the bank kernel, shape ``(5, B)``: 1/a, Ms/a, k, alpha/(1-c), alpha*c."""
     out = np.empty((5, a.shape[0]))
     for b in range(a.shape[0]):
-        out[0, b] = 1.0 / a[b]
-        out[1, b] = Ms[b] * out[0, b]  # as in lane_constants, so both layouts round alike
-        out[2, b] = k[b]
-        out[3, b] = alpha[b] / (1.0 - c[b])
-        out[4, b] = alpha[b] * c[b]
+        # the formulas of lane_constants (delta = +1: k itself), so both layouts round alike
+        lane = lane_constants(a[b], k[b], alpha[b], Ms[b], c[b], 1.0)
+        out[0, b] = lane.inv_a
+        out[1, b] = lane.ms_over_a
+        out[2, b] = lane.k_delta
+        out[3, b] = lane.alphahat
+        out[4, b] = lane.alpha_c
     return out
 
 
@@ -415,6 +417,25 @@ def _small_loop_slope(field, magnetization, delta, lane, chi_r, kind):
 
 
 @njit(cache=True, error_model="numpy")
+def _advance_bank_small_loop(magnetization, field_from, field_to, alpha, Ms, c, chi_r, constants, kind,
+                             max_field_step):
+    """:func:`_advance_bank` with the small-loop slope; ``constants`` from :func:`bank_constants`."""
+    n, step, delta = monotone_substeps(field_to - field_from, max_field_step)
+    inv_a, ms_over_a, k, alphahat, alpha_c = constants[0], constants[1], constants[2], constants[3], constants[4]
+    for s in range(n):
+        field = field_from + s * step
+        for b in range(magnetization.shape[0]):
+            lane = LaneConstants(alpha[b], inv_a[b], Ms[b], ms_over_a[b], k[b] * delta, alphahat[b], c[b],
+                                 alpha_c[b])
+            m = magnetization[b]
+            slope_start = _small_loop_slope(field, m, delta, lane, chi_r[b], kind)
+            slope_mid = _small_loop_slope(field + 0.5 * step, m + (0.5 * step) * slope_start, delta, lane,
+                                          chi_r[b], kind)
+            magnetization[b] = m + step * slope_mid
+    return n
+
+
+@njit(cache=True, error_model="numpy")
 def advance_shared_small_loop(magnetization, field_from, field_to, a, k, alpha, Ms, c, chi_r, kind,
                               max_field_step):
     """:func:`advance_shared` for the small-loop extension (``chi_r`` of shape ``(B,)``).
@@ -422,17 +443,10 @@ def advance_shared_small_loop(magnetization, field_from, field_to, a, k, alpha, 
     Same substeps and midpoint rule as (6); with ``chi_r = 0`` it gives the numbers of
     :func:`advance_shared`. Returns the number of substeps taken.
     """
-    n, step, delta = monotone_substeps(field_to - field_from, max_field_step)
-    for s in range(n):
-        field = field_from + s * step
-        for b in range(magnetization.shape[0]):
-            lane = lane_constants(a[b], k[b], alpha[b], Ms[b], c[b], delta)
-            m = magnetization[b]
-            slope_start = _small_loop_slope(field, m, delta, lane, chi_r[b], kind)
-            slope_mid = _small_loop_slope(field + 0.5 * step, m + (0.5 * step) * slope_start, delta, lane,
-                                          chi_r[b], kind)
-            magnetization[b] = m + step * slope_mid
-    return n
+    if field_to == field_from:
+        return 0
+    return _advance_bank_small_loop(magnetization, field_from, field_to, alpha, Ms, c, chi_r,
+                                    bank_constants(a, k, alpha, Ms, c), kind, max_field_step)
 
 
 @njit(cache=True)
@@ -442,8 +456,10 @@ def simulate_shared_small_loop(field, magnetization0, a, k, alpha, Ms, c, chi_r,
     out = np.empty((n_samples, magnetization0.shape[0]))
     state = magnetization0.copy()
     out[0] = state
+    constants = bank_constants(a, k, alpha, Ms, c)  # once per trajectory, as in simulate_shared
     for t in range(1, n_samples):
-        advance_shared_small_loop(state, field[t - 1], field[t], a, k, alpha, Ms, c, chi_r, kind, max_field_step)
+        _advance_bank_small_loop(state, field[t - 1], field[t], alpha, Ms, c, chi_r, constants, kind,
+                                 max_field_step)
         out[t] = state
     return out
 
