@@ -48,7 +48,7 @@ RUNS = RESULTS / "concealed_study.csv"
 GENERATORS = ("own", "independent")
 FIELDS = ["generator", "channels", "effect", "in_vocabulary", "seed", "verdict", "tied", "confidence", "outcome",
           "baseline_heldout", "verdict_heldout", "true_effect_improvement", "seconds", "samples", "sample_rate_hz",
-          "noise_relative", "excitation", "load_average"]
+          "noise_relative", "excitation", "load_average", "fits"]
 #: Confidence bins of the reliability table.
 BINS = (0.0, 0.2, 0.5, 0.8, 0.9, 1.0001)
 
@@ -130,7 +130,19 @@ def run_one(job):
             "baseline_heldout": report.baseline_heldout,
             "verdict_heldout": report.chosen.heldout_rmse if report.chosen else report.baseline_heldout,
             "true_effect_improvement": true.improvement if true else "", "seconds": seconds,
-            "samples": recording.size, **conditions, "load_average": os.getloadavg()[0]}
+            "samples": recording.size, **conditions, "load_average": os.getloadavg()[0],
+            "fits": json.dumps(fit_summaries(report))}
+
+
+def fit_summaries(report):
+    """What the decision rule reads, per candidate (so a rule can be re-examined without refitting)."""
+    base = report.baseline
+    return {"baseline_fit_rmse": round(float(np.sqrt(base.sse / base.n_residuals)), 4),
+            "candidates": [{"effect": c.effect, "heldout_rmse": round(c.heldout_rmse, 4),
+                            "fit_rmse": round(float(np.sqrt(c.fit.sse / c.fit.n_residuals)), 4),
+                            "delta_bic": round(c.bic - base.bic, 1), "improvement": round(c.improvement, 4),
+                            "accepted": c.accepted, "plausible": c.plausibility.plausible}
+                           for c in report.candidates]}
 
 
 def load_rows(path):

@@ -16,11 +16,12 @@ An accepted candidate is then *plausible* only if
 
 Verdicts:
 
-* a single effect -- the plausible candidate with the lowest held-out RMSE, when no other
-  plausible candidate comes within ``TIE_SHARE`` of its held-out reduction and it halves the
-  base model's held-out RMSE or brings it within ``EXPLAINED_RMSE`` noise units;
-* ``ambiguous`` -- several plausible candidates explain the held-out block equally well; the
-  report lists them and names the measurement that would separate them;
+* a single effect -- the plausible candidate with the lowest held-out RMSE, when every other
+  plausible candidate is *significantly* worse on the held-out block (:func:`tied_with`) and it
+  halves the base model's held-out RMSE or brings it within ``EXPLAINED_RMSE`` noise units;
+* ``ambiguous`` -- several plausible candidates explain the held-out block equally well, i.e.
+  their held-out mean squares differ by no more than the noise makes likely; the report lists
+  them and names the measurement that would separate them;
 * ``unexplained`` -- the base model misses by more than ``UNEXPLAINED_RMSE`` noise units and
   no plausible candidate explains most of it; the report says where the residual lives;
 * ``none`` -- the base model predicts the held-out block to within noise.
@@ -65,8 +66,11 @@ EXPLAINED_RMSE = 2.0
 #: Largest confidence of a ``none`` verdict (module docstring): a margin in [0, 1] is scaled to it.
 NONE_CONFIDENCE_CEILING = 0.5
 NAMING_IMPROVEMENT = 0.5
-#: Another plausible candidate reaching this share of the winner's held-out reduction ties with it.
-TIE_SHARE = 0.85
+#: Another plausible candidate ties with the winner unless its held-out mean square is larger by more
+#: than this many standard errors (:func:`tied_with`).
+TIE_Z = 2.0
+#: Contiguous blocks of the held-out residual whose means give that standard error.
+TIE_BLOCKS = 20
 #: Independent time blocks for the consistency check.
 BLOCKS = 3
 #: Block estimates of the main parameter agree when they lie within this relative spread...
@@ -184,6 +188,24 @@ class Decision:
     notes: list = dataclass_field(default_factory=list)
 
 
+def tied_with(candidate, best) -> bool:
+    """Whether ``candidate`` explains the held-out block as well as ``best``, within the noise.
+
+    A paired test on the same samples (Diebold and Mariano, J. Bus. Econ. Stat. 13, 253, 1995):
+    d = r_candidate^2 - r_best^2 per held-out sample, in noise units; the two tie unless the mean of
+    d exceeds ``TIE_Z`` standard errors. The standard error comes from the means of ``TIE_BLOCKS``
+    contiguous blocks, because residuals of a misfit are correlated in time. The noise cancels in d
+    where the two predictions agree, so two models that differ only where the record cannot tell
+    them apart tie, however small the noise, while a difference that runs through the whole block
+    separates them even when both are within a few per cent of the noise level."""
+    d = candidate.heldout_residual ** 2 - best.heldout_residual ** 2
+    means = np.array([block.mean() for block in np.array_split(d, TIE_BLOCKS) if block.size])
+    if means.size < 2:
+        return True
+    standard_error = float(np.std(means, ddof=1) / np.sqrt(means.size))
+    return bool(np.mean(means) <= TIE_Z * standard_error)
+
+
 def reduction(candidate, base_heldout):
     return base_heldout - candidate.heldout_rmse
 
@@ -209,8 +231,7 @@ def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False) -
     best_improvement = max([c.improvement for c in candidates] + [0.0])
     if plausible:
         best = plausible[0]
-        best_reduction = reduction(best, base_heldout)
-        tied = [c for c in plausible if reduction(c, base_heldout) >= TIE_SHARE * best_reduction]
+        tied = [best] + [c for c in plausible[1:] if tied_with(c, best)]
         others = [c for c in candidates if all(c is not t for t in tied)]  # identity: fits hold arrays
         runner = max([reduction(c, base_heldout) for c in others] + [0.0])
         if naming_margin(best) == 0.0 and best.heldout_rmse > EXPLAINED_RMSE:

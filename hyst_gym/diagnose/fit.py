@@ -127,7 +127,7 @@ def _uncertainties(model, names, x, J, sse, n):
 
 
 def global_search(model: Model, weights: dict, mask, names, n_points: int = 128, keep: int = 3,
-                  seed: int = 0, linear_outputs: tuple = (), extra_starts=()) -> list[dict]:
+                  seed: int = 0, linear_outputs: tuple = (), extra_starts=(), output_solver=None) -> list[dict]:
     """Score a scrambled Sobol design over the boxes of ``names``; return the ``keep`` best starts.
 
     The other parameters stay at the model's values. Output parameters listed in
@@ -135,6 +135,8 @@ def global_search(model: Model, weights: dict, mask, names, n_points: int = 128,
     solved by linear least squares for each design point (the displacement is affine in
     ``zetahat`` and ``zetahat*M0``), which makes the search insensitive to their start.
     ``extra_starts`` (value dicts) are scored with the design and kept only if among the best.
+    ``output_solver(values, magnetization) -> values``, if given, replaces the linear pair: it
+    sets the output parameters that are linear in some function of M (e.g. the M and M^2 gains).
     """
     sampler = qmc.Sobol(d=len(names), scramble=True, seed=seed)
     unit = sampler.random(n_points)
@@ -156,7 +158,11 @@ def global_search(model: Model, weights: dict, mask, names, n_points: int = 128,
     scored = []
     for i, v in enumerate(candidates):
         m = magnetization[:, i]
-        if linear_outputs and "displacement" in model.channels:
+        if not np.all(np.isfinite(m)):
+            continue  # the design point leaves the model's range of validity
+        if output_solver is not None:
+            v = output_solver(v, m)
+        elif linear_outputs and "displacement" in model.channels:
             v = _solve_linear_outputs(model, v, m, weights, mask, linear_outputs)
         r = objective.residual_of(model.predict(v, m))
         scored.append((float(np.nan_to_num(r @ r, nan=np.inf)), v))
@@ -172,6 +178,8 @@ def _solve_linear_outputs(model, values, magnetization, weights, mask, pair):
     unit = model.displacement(dict(trial, **{offset_name: 1.0}), magnetization)[mask]
     offset_response = response - unit                                 # response to +1 in gain*M0
     design = np.column_stack([response, offset_response])
+    if not np.all(np.isfinite(design)):
+        return dict(values)  # mechanics unstable at these values: nothing to solve; scored as they are
     coef, *_ = np.linalg.lstsq(design, data, rcond=None)
     gain = float(coef[0]) if abs(coef[0]) > 0 else 1e-30
     out = dict(values)

@@ -10,13 +10,21 @@ from hyst_gym.diagnose.identifiability import channel_set, invisible_effects, se
 from hyst_gym.diagnose.recording import Recording
 
 
-class _Candidate:
-    """The attributes of core.Candidate that decide() reads."""
+#: unit-variance noise on a 2000-sample held-out block, shared by the stand-ins below
+_NOISE = np.random.default_rng(7).standard_normal(2000)
 
-    def __init__(self, effect, heldout_rmse, base=10.0, plausible=True, reasons=()):
+
+class _Candidate:
+    """The attributes of core.Candidate that decide() reads. The held-out residual is the shared
+    noise scaled to ``heldout_rmse`` unless given."""
+
+    def __init__(self, effect, heldout_rmse=None, base=10.0, plausible=True, reasons=(), residual=None):
+        if residual is None:
+            residual = heldout_rmse * _NOISE / np.sqrt(np.mean(_NOISE ** 2))
+        self.heldout_residual = residual
         self.effect = effect
-        self.heldout_rmse = heldout_rmse
-        self.improvement = 1.0 - heldout_rmse / base
+        self.heldout_rmse = float(np.sqrt(np.mean(residual ** 2)))
+        self.improvement = 1.0 - self.heldout_rmse / base
         self.accepted = self.improvement >= 0.2
         self.plausibility = Plausibility(plausible, list(reasons))
 
@@ -29,8 +37,35 @@ def test_clear_winner_is_named_with_its_margin():
     assert decision.confidence == pytest.approx(1.0 - 3.0 / 9.0)
 
 
+def _bumped(block, height):
+    """The shared noise with a misfit of ``height`` noise units on one 100-sample stretch."""
+    residual = _NOISE.copy()
+    residual[block * 100:(block + 1) * 100] += height
+    return residual
+
+
+def test_tie_is_a_paired_test_on_the_heldout_residuals():
+    """Two models that differ on one short stretch of the held-out block tie (the record barely
+    tells them apart there), although one has the larger RMSE; a misfit of only 0.25 noise units
+    that runs through the whole block separates them."""
+    from hyst_gym.diagnose.decide import tied_with
+
+    best = _Candidate("sensor_lag", residual=_NOISE)
+    stretch = _Candidate("rod_dynamics", residual=_bumped(7, 2.0))
+    assert stretch.heldout_rmse > 1.05 * best.heldout_rmse
+    assert tied_with(stretch, best)
+    throughout = _Candidate("rod_dynamics", residual=_NOISE + 0.25)
+    assert throughout.heldout_rmse < stretch.heldout_rmse
+    assert not tied_with(throughout, best)
+    decision = decide([best, throughout, _Candidate("field_bias", 9.0)], 10.0, ("displacement",))
+    assert decision.verdict == "sensor_lag"
+    # the runner-up nearly matches the winner's reduction: named, but with a small margin
+    assert decision.confidence < 0.1
+
+
 def test_tie_is_ambiguous_and_names_the_separating_measurement():
-    candidates = [_Candidate("sensor_lag", 1.0), _Candidate("rod_dynamics", 1.3), _Candidate("field_bias", 9.0)]
+    candidates = [_Candidate("sensor_lag", residual=_NOISE), _Candidate("rod_dynamics", residual=_bumped(7, 2.0)),
+                  _Candidate("field_bias", 9.0)]
     decision = decide(candidates, 10.0, ("displacement",))
     assert decision.verdict == "ambiguous"
     assert [c.effect for c in decision.tied] == ["sensor_lag", "rod_dynamics"]
