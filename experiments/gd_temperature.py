@@ -56,7 +56,7 @@ from scipy.optimize import least_squares
 
 from hyst_gym.physics.hysteresis import HysteresisBatch, simulate_batch
 from hyst_gym.physics.temperature_laws import (
-    GD_CURIE_K, Constant, CriticalPowerLaw, FollowsMs, LinearInT, LogPolynomial, TemperatureLaws,
+    GD_CURIE_K, PARAMETER_NAMES, Constant, CriticalPowerLaw, FollowsMs, LinearInT, LogPolynomial, TemperatureLaws,
     celsius_to_kelvin,
 )
 
@@ -89,7 +89,7 @@ class Record:
     field: np.ndarray
     B: np.ndarray
     loop_start: int  # index of the first positive peak in the subsampled record
-    M0: float  # measured M at the first sample, A/m
+    M0: float  # measured M at the start of the record (median over the start, see clean_record), A/m
     peak_field: float
     max_field_step: float
     asymmetry: float = 0.0  # (B(+Hmax) + B(-Hmax)) / 2 / ptp(B) on the loop; 0 for a symmetric loop
@@ -137,7 +137,22 @@ def clean_record(H, B, temperature_C, amplitude, stride=8) -> Record:
     span = float(np.ptp(B[i_max:]))
     asymmetry = (near(i_max) + near(i_min)) / 2.0 / span if span > 0 else 0.0
     return Record(float(temperature_C), amplitude, np.ascontiguousarray(clean[idx]), B[idx].copy(), loop_start,
-                  float(B[0] / MU0 - H[0]), peak, min(50.0, peak / 200.0), asymmetry)
+                  start_magnetization(H, B, i_max), peak, min(50.0, peak / 200.0), asymmetry)
+
+
+#: Share of the peak field below which the start of a record counts as its initial state.
+START_FIELD_SHARE = 0.05
+
+
+def start_magnetization(H, B, i_max) -> float:
+    """The measured M (A/m) the record starts from: the median of B/mu0 - H over its first samples,
+    while the field stays below START_FIELD_SHARE of its first maximum (at least the first sample).
+    One sample alone carries the sampling noise (a spike of a few mT at the start of a 400 A/m record
+    would act as a remanent state the model then carries through the whole loop)."""
+    low = np.abs(H[:i_max]) <= START_FIELD_SHARE * abs(H[i_max])
+    n = int(np.argmin(low)) if not low.all() else low.size
+    n = max(n, 1)
+    return float(np.median(B[:n] / MU0 - H[:n]))
 
 
 def load_records(path, stride=8, temperatures: Optional[Sequence[float]] = None) -> List[Record]:
@@ -184,6 +199,9 @@ class LawFamily:
     upper: Tuple[float, ...]
     log: Tuple[bool, ...]
     build: Callable[[Dict[str, float]], TemperatureLaws]
+    #: the reversal-dependent pinning (``hysteresis.REVERSAL_PINNING``), rayleigh_field = kappa*k(T):
+    #: kappa fixed (a number), fitted (the name of its parameter), or None for model (6)'s pinning
+    rayleigh_ratio: Optional[object] = None
 
     def to_z(self, values) -> np.ndarray:
         v = np.asarray(values, dtype=np.float64)
@@ -252,7 +270,19 @@ FAMILIES = {
         (float(np.log(50.0)), -3.0, -3.0, float(np.log(5.0)), -3.0, -3.0, 1e-3, 1e5, 0.05, 1e-3, -4.0),
         (float(np.log(1e5)), 3.0, 3.0, float(np.log(2e4)), 3.0, 3.0, 0.99, 2e7, 1.5, 1e4, 4.0),
         (False, False, False, False, False, False, True, True, False, True, False), _smooth_small_loop),
+    "smooth_reversal": LawFamily(
+        "smooth_reversal", "smooth, plus reversal-dependent pinning: rayleigh_field = kappa k(T)",
+        ("la0", "la1", "la2", "lk0", "lk1", "lk2", "c", "Ms0", "beta", "kappa"),
+        (float(np.log(5000.0)), 0.0, 0.0, float(np.log(400.0)), 0.3, 0.0, 0.45, 2.3e6, 0.31, 0.5),
+        (float(np.log(50.0)), -3.0, -3.0, float(np.log(5.0)), -3.0, -3.0, 1e-3, 1e5, 0.05, 1e-3),
+        (float(np.log(1e5)), 3.0, 3.0, float(np.log(2e4)), 3.0, 3.0, 0.99, 2e7, 1.5, 30.0),
+        (False, False, False, False, False, False, True, True, False, True), _smooth, "kappa"),
 }
+#: The reversal-dependent pinning with no parameter of its own: the irreversible term builds up over
+#: a field change of the pinning field k(T) itself (kappa = 1).
+FAMILIES["smooth_pinning"] = replace(
+    FAMILIES["smooth"], name="smooth_pinning", rayleigh_ratio=1.0,
+    description="smooth, plus reversal-dependent pinning over the pinning field: rayleigh_field = k(T)")
 
 
 # --------------------------------------------------------------------------- model and fit
@@ -261,10 +291,15 @@ FAMILIES = {
 def parameter_table(family: LawFamily, zs: np.ndarray, temperatures_K: np.ndarray) -> Dict[str, np.ndarray]:
     """JA parameters, each of shape (len(zs), len(temperatures_K)), for fit coordinates ``zs``."""
     out = {n: np.empty((len(zs), len(temperatures_K))) for n in ("a", "k", "c", "Ms", "alpha", "chi_r")}
+    out["rayleigh_field"] = np.zeros((len(zs), len(temperatures_K)))
     for i, z in enumerate(zs):
-        values = family.build(family.from_z(z))(temperatures_K)
-        for n in out:
+        params = family.from_z(z)
+        values = family.build(params)(temperatures_K)
+        for n in PARAMETER_NAMES:
             out[n][i] = values[n]
+        if family.rayleigh_ratio is not None:
+            kappa = params.get(family.rayleigh_ratio) if isinstance(family.rayleigh_ratio, str) else family.rayleigh_ratio
+            out["rayleigh_field"][i] = kappa * values["k"]
     return out
 
 
@@ -281,7 +316,7 @@ def simulate_records(records: Sequence[Record], family: LawFamily, zs: np.ndarra
         j = int(np.searchsorted(temps, r.temperature_K))
         try:
             batch = HysteresisBatch(*(table[n][:, j] for n in ("a", "k", "alpha", "Ms", "c")), ANHYSTERETIC,
-                                    table["chi_r"][:, j])
+                                    table["chi_r"][:, j], table["rayleigh_field"][:, j])
         except ValueError:
             out.append(None)
             continue

@@ -34,10 +34,10 @@ import numpy as np
 import scipy.io
 
 from hyst_gym.diagnose import Recording, diagnose, write_json, write_plots
-from hyst_gym.diagnose.core import calibrate, fit_candidate
-from hyst_gym.diagnose.fit import local_fit
+from hyst_gym.diagnose.core import loop_informed_starts
+from hyst_gym.diagnose.fit import FitResult, Objective, global_search, local_fit
 from hyst_gym.diagnose.report import physical_params
-from hyst_gym.diagnose.model import Structure, noise_level
+from hyst_gym.diagnose.model import Model, Structure, base_parameters, extension_parameters, noise_level
 
 MU0 = 4e-7 * np.pi
 DATA = Path(__file__).resolve().parents[1] / "data" / "real" / "jamodel-loops"
@@ -178,15 +178,11 @@ def holdout_study(stem, folder=DATA, materials=MATERIALS):
     results, fits, base_seconds, bases = [], {}, {}, {}
     for curve, extension in VARIANTS:
         started = time.perf_counter()
-        if extension is None:
-            fit = calibrate(rec, Structure("none", curve), weights, scored & ~segment, step)
-        else:  # the extension's fit starts from the base fit of the same curve and adds its own search
-            fit = fit_candidate(rec, bases[curve], extension, weights, scored & ~segment, step)
-        fit, good, starts = grid_refits(fit, rec, weights, scored & ~segment)
+        fit, good, starts = fit_variant(rec, curve, extension, weights, scored & ~segment, step, bases.get(curve))
         seconds = time.perf_counter() - started
         if extension is None:
             bases[curve], base_seconds[curve] = fit, seconds
-        else:  # the extension's fit needs the base fit first: its time counts too
+        else:  # the extension's fit needs the base fit first (its bounds and a start): its time counts too
             seconds += base_seconds[curve]
         name = variant_name(curve, extension)
         fits[name] = fit
@@ -211,22 +207,109 @@ def holdout_study(stem, folder=DATA, materials=MATERIALS):
 
 #: Fits whose fitted-loop sum of squares is within this factor of the best count as equally good.
 EQUALLY_GOOD = 1.25
+#: Starts of the batched fit: the grid below, and the best points of a Sobol design over the boxes.
+SOBOL_POINTS, SOBOL_KEEP = 128, 3
 
 
-def grid_refits(fit, rec, weights, fit_mask):
-    """Local fits from a grid of starts that put the low-field slope into c and k, or (with the
-    small-loop extension) into chi_r: the calibration's Sobol search keeps only a few starts and
-    can settle in the wrong basin. Returns the lowest-SSE fit and those equally good."""
+def variant_model(rec, curve, extension, step, base=None):
+    """The model of one variant with its parameter boxes, scaled to the recording; the
+    small-loop extension's box for chi_r comes from the base fit of the same curve."""
+    structure = Structure("none", curve, extension)
+    parameters = base_parameters(rec, structure)
+    if extension is not None:
+        parameters.update(extension_parameters(rec, structure, base.values))
+    return Model(rec, structure, parameters, step)
+
+
+def grid_starts(rec, small_loop):
+    """Starts that put the low-field slope into c and k, or (with the small-loop extension)
+    into chi_r: a local fit from one start can settle in the wrong basin."""
     h_max = float(np.max(np.abs(rec.field)))
     peak = float(np.max(np.abs(rec.magnetization)))
-    small_loop = "chi_r" in fit.values
-    starts = [dict(fit.values, a=a * h_max, k=k * h_max, c=c, rho=0.0, Ms=1.2 * peak,
-                   **({"chi_r": chi * peak / h_max} if small_loop else {}))
-              for a in (0.1, 0.3, 1.0) for k in (0.03, 0.1) for c in (0.05, 0.4)
-              for chi in ((0.3,) if small_loop else (None,))]
-    fits = [fit] + [local_fit(fit.model, weights, fit_mask, start, max_nfev=80) for start in starts]
-    best = min(fits, key=lambda f: f.sse)
-    return best, [f for f in fits if f.sse <= EQUALLY_GOOD * best.sse], len(fits)
+    return [dict(a=a * h_max, k=k * h_max, c=c, rho=0.0, Ms=1.2 * peak,
+                 **({"chi_r": chi * peak / h_max} if small_loop else {}))
+            for a in (0.1, 0.3, 1.0) for k in (0.03, 0.1) for c in (0.05, 0.4)
+            for chi in ((0.3,) if small_loop else (None,))]
+
+
+def fit_variant(rec, curve, extension, weights, fit_mask, step, base=None):
+    """All starts of one variant fitted at once (:func:`batched_least_squares`), the best one polished
+    by the diagnose tool's local fit (which also gives the uncertainties). Returns the best fit, the
+    fits that are equally good on the fitted samples and the number of starts."""
+    model = variant_model(rec, curve, extension, step, base)
+    names = [n for n in ("a", "k", "rho", "Ms", "c", "chi_r") if n in model.parameters and model.parameters[n].free]
+    starts = grid_starts(rec, extension is not None)
+    starts += global_search(model, weights, fit_mask, names, n_points=SOBOL_POINTS, keep=SOBOL_KEEP,
+                            extra_starts=loop_informed_starts(rec))
+    if base is not None:  # the base fit, with a little of its low-field slope moved into chi_r
+        starts += [dict(base.values, chi_r=share * model.parameters["chi_r"].upper) for share in (0.0, 0.1)]
+    values, sse = batched_least_squares(model, weights, fit_mask, starts)
+    best = local_fit(model, weights, fit_mask, values[int(np.argmin(sse))], max_nfev=10)
+    good = [best] + [FitResult(model.with_values(v), v, {}, float(e), best.n_residuals, best.n_free, 0)
+                     for v, e in zip(values, sse) if e <= EQUALLY_GOOD * best.sse]
+    return best, good, len(starts)
+
+
+def batched_least_squares(model, weights, fit_mask, starts, iterations=80, prune_after=10, prune_factor=10.0):
+    """Levenberg-Marquardt (Marquardt's diagonal scaling, steps clipped to the boxes) from every
+    start at once: each iteration simulates the Jacobians of all starts (forward differences), then
+    the trial steps of all starts, each as one bank of models in one compiled call, instead of one
+    local fit after the other. A start stops when its sum of squares improves by less than 1e-9
+    relatively, its damping exceeds 1e8, or (after ``prune_after`` iterations) it is more than
+    ``prune_factor`` times the best. Returns the values dicts and sums of squares of all starts."""
+    objective = Objective(model, weights, fit_mask)
+    names = model.free_names
+    lower = np.array([model.parameters[n].x_bounds[0] for n in names])
+    upper = np.array([model.parameters[n].x_bounds[1] for n in names])
+    span = upper - lower
+    x = np.array([np.clip(model.x_from_values({**model.values(), **start}), lower + 1e-9 * span,
+                          upper - 1e-9 * span) for start in starts])
+
+    def residuals(points):
+        values = [model.values_from_x(p) for p in points]
+        rows = objective.residuals_many(values)
+        return np.array([np.nan_to_num(r, nan=1e6, posinf=1e6, neginf=-1e6) for r in rows])
+
+    r = residuals(x)
+    sse = np.einsum("ij,ij->i", r, r)
+    damping = np.full(len(x), 1e-3)
+    active = np.ones(len(x), bool)
+    stale = np.ones(len(x), bool)  # Jacobian to be recomputed
+    jacobians = np.zeros((len(x), r.shape[1], len(names)))
+    for iteration in range(iterations):
+        todo = np.flatnonzero(active & stale)
+        if todo.size:
+            steps = 1e-5 * np.maximum(1.0, np.abs(x[todo]))
+            steps = np.where(x[todo] + steps > upper, -steps, steps)
+            shifted = np.repeat(x[todo], len(names), axis=0) + np.concatenate([np.diag(s) for s in steps])
+            moved = residuals(shifted).reshape(todo.size, len(names), -1)
+            jacobians[todo] = np.transpose((moved - r[todo][:, None, :]) / steps[:, :, None], (0, 2, 1))
+            stale[todo] = False
+        live = np.flatnonzero(active)
+        trial = np.empty((live.size, len(names)))
+        for i, s in enumerate(live):
+            J = jacobians[s]
+            normal = J.T @ J
+            scale = np.diag(normal) + 1e-12
+            step = np.linalg.solve(normal + damping[s] * np.diag(scale), -J.T @ r[s])
+            trial[i] = np.clip(x[s] + step, lower, upper)
+        r_trial = residuals(trial)
+        sse_trial = np.einsum("ij,ij->i", r_trial, r_trial)
+        for i, s in enumerate(live):
+            if sse_trial[i] < sse[s]:
+                converged = sse[s] - sse_trial[i] < 1e-9 * sse[s]
+                x[s], r[s], sse[s] = trial[i], r_trial[i], sse_trial[i]
+                damping[s] = max(damping[s] / 3.0, 1e-9)
+                stale[s] = True
+                active[s] = not converged
+            else:
+                damping[s] *= 4.0
+                active[s] = damping[s] < 1e8
+        if iteration >= prune_after:
+            active &= sse <= prune_factor * sse.min()
+        if not active.any():
+            break
+    return [model.values_from_x(p) for p in x], sse
 
 
 def prediction_spread(good, starts, loops, order, stem):

@@ -75,6 +75,10 @@ class HysteresisParams:
         Reversible low-field susceptibility of the small-loop extension, dimensionless
         (``>= 0``; see :data:`SMALL_LOOP_EXTENSION`). 0, the default, is model (6) itself,
         computed by the same kernels as before, bit for bit.
+    rayleigh_field : float
+        Field change after a reversal over which the irreversible susceptibility of (6) builds
+        up, A/m (``>= 0``; see :data:`REVERSAL_PINNING`). 0, the default, is model (6) itself
+        (irreversible change at full strength right away), computed by the unchanged kernels.
     """
 
     a: float = 7012.0
@@ -84,13 +88,15 @@ class HysteresisParams:
     c: float = 0.18
     anhysteretic: str = "ising"
     chi_r: float = 0.0
+    rayleigh_field: float = 0.0
 
     def __post_init__(self):
         validate_hysteresis_parameters(
             self.a, self.k, self.alpha, self.Ms, self.c, self.anhysteretic, owner="HysteresisParams"
         )
         _validate_chi_r(self.chi_r, "HysteresisParams")
-        for name in ("a", "k", "alpha", "Ms", "c", "chi_r"):
+        _validate_nonnegative(self.rayleigh_field, "rayleigh_field", "A/m", "HysteresisParams")
+        for name in ("a", "k", "alpha", "Ms", "c", "chi_r", "rayleigh_field"):
             object.__setattr__(self, name, float(getattr(self, name)))
         object.__setattr__(self, "anhysteretic", str(self.anhysteretic).lower())
 
@@ -137,9 +143,13 @@ def validate_hysteresis_parameters(a, k, alpha, Ms, c, anhysteretic="ising", own
 
 
 def _validate_chi_r(chi_r, owner):
-    chi_r = np.asarray(chi_r, dtype=np.float64)
-    if not np.all(np.isfinite(chi_r) & (chi_r >= 0.0)):
-        raise ValueError(f"{owner}: chi_r must be finite and >= 0 (dimensionless), got {_show(chi_r)}")
+    _validate_nonnegative(chi_r, "chi_r", "dimensionless", owner)
+
+
+def _validate_nonnegative(values, name, unit, owner):
+    values = np.asarray(values, dtype=np.float64)
+    if not np.all(np.isfinite(values) & (values >= 0.0)):
+        raise ValueError(f"{owner}: {name} must be finite and >= 0 ({unit}), got {_show(values)}")
 
 
 def _show(values) -> str:
@@ -163,15 +173,17 @@ class HysteresisBatch:
     c: np.ndarray
     anhysteretic: str = "ising"
     chi_r: np.ndarray | float = 0.0
+    rayleigh_field: np.ndarray | float = 0.0
 
     def __post_init__(self):
         arrays = np.broadcast_arrays(*(np.asarray(getattr(self, n), dtype=np.float64)
-                                       for n in ("a", "k", "alpha", "Ms", "c", "chi_r")))
+                                       for n in ("a", "k", "alpha", "Ms", "c", "chi_r", "rayleigh_field")))
         if arrays[0].ndim != 1:
             raise ValueError(f"HysteresisBatch: parameters must be 1-D arrays, got shape {arrays[0].shape}")
         validate_hysteresis_parameters(*arrays[:5], self.anhysteretic, owner="HysteresisBatch")
         _validate_chi_r(arrays[5], "HysteresisBatch")
-        for name, arr in zip(("a", "k", "alpha", "Ms", "c", "chi_r"), arrays):
+        _validate_nonnegative(arrays[6], "rayleigh_field", "A/m", "HysteresisBatch")
+        for name, arr in zip(("a", "k", "alpha", "Ms", "c", "chi_r", "rayleigh_field"), arrays):
             arr = np.array(arr, dtype=np.float64)  # own, contiguous copy
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
@@ -186,6 +198,11 @@ class HysteresisBatch:
         return bool(np.any(self.chi_r != 0.0))
 
     @property
+    def reversal_pinning(self) -> bool:
+        """Whether any model uses the reversal-dependent pinning (``rayleigh_field > 0``)."""
+        return bool(np.any(self.rayleigh_field != 0.0))
+
+    @property
     def kind(self) -> int:
         return anhysteretic_kind(self.anhysteretic)
 
@@ -193,7 +210,7 @@ class HysteresisBatch:
     def from_params(cls, params: HysteresisParams, size: int = 1) -> "HysteresisBatch":
         one = np.ones(int(size))
         return cls(params.a * one, params.k * one, params.alpha * one, params.Ms * one,
-                   params.c * one, params.anhysteretic, params.chi_r * one)
+                   params.c * one, params.anhysteretic, params.chi_r * one, params.rayleigh_field * one)
 
     @classmethod
     def grid(cls, params: HysteresisParams, a_values) -> "HysteresisBatch":
@@ -201,7 +218,7 @@ class HysteresisBatch:
         a_values = np.asarray(a_values, dtype=np.float64).ravel()
         one = np.ones(a_values.shape[0])
         return cls(a_values, params.k * one, params.alpha * one, params.Ms * one,
-                   params.c * one, params.anhysteretic, params.chi_r * one)
+                   params.c * one, params.anhysteretic, params.chi_r * one, params.rayleigh_field * one)
 
     @classmethod
     def stack(cls, params_list) -> "HysteresisBatch":
@@ -212,11 +229,13 @@ class HysteresisBatch:
         if len(curves) != 1:
             raise ValueError(f"HysteresisBatch.stack: mixed anhysteretic curves {sorted(curves)}")
         return cls(*(np.array([getattr(p, n) for p in params_list]) for n in ("a", "k", "alpha", "Ms", "c")),
-                   curves.pop(), np.array([p.chi_r for p in params_list]))
+                   curves.pop(), np.array([p.chi_r for p in params_list]),
+                   np.array([p.rayleigh_field for p in params_list]))
 
     def with_a(self, a_values) -> "HysteresisBatch":
         """Same batch with ``a`` replaced (A/m), e.g. after a temperature change."""
-        return HysteresisBatch(a_values, self.k, self.alpha, self.Ms, self.c, self.anhysteretic, self.chi_r)
+        return HysteresisBatch(a_values, self.k, self.alpha, self.Ms, self.c, self.anhysteretic, self.chi_r,
+                               self.rayleigh_field)
 
 
 # --------------------------------------------------------------------------- kernels
@@ -244,8 +263,9 @@ def lane_constants(a, k, alpha, Ms, c, delta):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _slope(field, magnetization, delta, lane, kind):
-    """dM/dH of (6) from a model's :data:`LaneConstants`."""
+def _slope_terms(field, magnetization, delta, lane, kind):
+    """The two terms of (6): the irreversible ``dhat*(Man - M)/(k*delta - alphahat*(Man - M))``
+    and ``Man'`` (both per A/m of H), from a model's :data:`LaneConstants`."""
     unit, unit_slope = anhysteretic_unit((field + lane.alpha * magnetization) * lane.inv_a, kind)
     man_slope = lane.ms_over_a * unit_slope
     gap = lane.Ms * unit - magnetization
@@ -256,6 +276,13 @@ def _slope(field, magnetization, delta, lane, kind):
     irreversible_on = (gap * delta > 0.0) & (denominator * delta > 0.0)
     irreversible = gap / (denominator if irreversible_on else delta)
     irreversible = irreversible if irreversible_on else 0.0
+    return irreversible, man_slope
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _slope(field, magnetization, delta, lane, kind):
+    """dM/dH of (6) from a model's :data:`LaneConstants`."""
+    irreversible, man_slope = _slope_terms(field, magnetization, delta, lane, kind)
     return (irreversible + lane.c * man_slope) / (1.0 - lane.alpha_c * man_slope)
 
 
@@ -410,10 +437,15 @@ SMALL_LOOP_EXTENSION = "dM/dH = (6) + chi_r * max(0, 1 - (M/Ms)^2)"
 @njit(cache=True, inline="always", error_model="numpy")
 def _small_loop_slope(field, magnetization, delta, lane, chi_r, kind):
     """dM/dH of the small-loop extension: the slope of (6) plus the fading reversible term."""
+    return _slope(field, magnetization, delta, lane, kind) + chi_r * _small_loop_fading(magnetization, lane)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _small_loop_fading(magnetization, lane):
+    """``max(0, 1 - (M/Ms)^2)``: the share of the small-loop term left as the material saturates."""
     ratio = magnetization / lane.Ms
     fading = 1.0 - ratio * ratio
-    fading = fading if fading > 0.0 else 0.0
-    return _slope(field, magnetization, delta, lane, kind) + chi_r * fading
+    return fading if fading > 0.0 else 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -464,6 +496,92 @@ def simulate_shared_small_loop(field, magnetization0, a, k, alpha, Ms, c, chi_r,
     return out
 
 
+# ------------------------------------------------------- reversal-dependent pinning
+
+#: Reversal-dependent pinning, an option of (6) for small loops and for states that a small
+#: excursion does not wipe out. In (6) the irreversible change ``dhat*(Man - M)/(k*delta -
+#: alphahat*(Man - M))`` is at full strength as soon as M lags Man; so a loop far smaller than the
+#: coercive field still moves the irreversible magnetization by ``(Man - M)/k`` per A/m, and a
+#: remanent state is erased by the first small excursion. Measured materials show the opposite in
+#: the Rayleigh region: right after a reversal the walls sit in their pinning sites and only bow
+#: (reversibly); the irreversible susceptibility grows in proportion to the field change since the
+#: reversal, ``chi_irr = eta*|H - H_rev|`` (Rayleigh's law: Rayleigh, Phil. Mag. 23, 225 (1887);
+#: G. Bertotti, *Hysteresis in Magnetism*, Academic Press 1998, sec. 9.1; the reversal-point
+#: dependence of the irreversible term of the Jiles-Atherton model, K. H. Carpenter, "A
+#: differential equation approach to minor loops in the Jiles-Atherton hysteresis model", IEEE
+#: Trans. Magn. 27(6), 4404 (1991), and D. C. Jiles, "A self consistent generalized model for the
+#: calculation of minor loop excursions in the theory of hysteresis", IEEE Trans. Magn. 28(5),
+#: 2602 (1992)). This option weighs the irreversible term of (6) by the smooth onset
+#:
+#:     w = 1 - exp(-|H - H_rev| / rayleigh_field)
+#:
+#: (``H_rev``: the field at the last reversal, or at the first sample: a demagnetized or remanent
+#: start is a state in the pinning sites too), which is ``|H - H_rev|/rayleigh_field`` -- Rayleigh's
+#: linear growth -- for small excursions and 1 (model (6)) a few ``rayleigh_field`` after a
+#: reversal. On a major loop the irreversible term is off anyway right after a reversal (M has to
+#: cross Man first), so the option acts on small loops and on excursions from a remanent state.
+#: Under one shared field every model of a bank reverses at the same samples, so ``H_rev`` is one
+#: number per trajectory and the bank kernels need no per-model state.
+REVERSAL_PINNING = ("dM/dH = [w*dhat*(Man - M)/(k*delta - alphahat*(Man - M)) + c*Man'] / (1 - alpha*c*Man')"
+                    " + chi_r*max(0, 1 - (M/Ms)^2),  w = 1 - exp(-|H - H_rev|/rayleigh_field)")
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def reversal_weight(field, reversal_field, rayleigh_field):
+    """Onset ``w`` of the irreversible term after a reversal at ``reversal_field`` (all A/m);
+    1 (model (6)) when ``rayleigh_field`` is 0."""
+    if rayleigh_field == 0.0:
+        return 1.0
+    return 1.0 - math.exp(-abs(field - reversal_field) / rayleigh_field)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _reversal_slope(field, magnetization, delta, lane, chi_r, weight, kind):
+    """dM/dH of :data:`REVERSAL_PINNING`: (6) with its irreversible term weighted by ``weight``,
+    plus the small-loop extension's reversible term."""
+    irreversible, man_slope = _slope_terms(field, magnetization, delta, lane, kind)
+    return ((weight * irreversible + lane.c * man_slope) / (1.0 - lane.alpha_c * man_slope)
+            + chi_r * _small_loop_fading(magnetization, lane))
+
+
+@njit(cache=True, error_model="numpy")
+def simulate_shared_reversal(field, magnetization0, a, k, alpha, Ms, c, chi_r, rayleigh_field, kind,
+                             max_field_step):
+    """Trajectories of a bank under one sampled field with :data:`REVERSAL_PINNING` (and the
+    small-loop term ``chi_r``): M of shape ``(T, B)``. Same substeps and midpoint rule as (6).
+
+    The reversal field starts at ``field[0]`` and moves to ``field[t-1]`` whenever an increment
+    runs against the previous non-zero one."""
+    n_samples = field.shape[0]
+    out = np.empty((n_samples, magnetization0.shape[0]))
+    state = magnetization0.copy()
+    out[0] = state
+    constants = bank_constants(a, k, alpha, Ms, c)
+    inv_a, ms_over_a, k_up, alphahat, alpha_c = constants[0], constants[1], constants[2], constants[3], constants[4]
+    reversal = field[0]
+    previous = 0.0
+    for t in range(1, n_samples):
+        n, step, delta = monotone_substeps(field[t] - field[t - 1], max_field_step)
+        if n > 0:
+            if previous != 0.0 and delta != previous:
+                reversal = field[t - 1]
+            previous = delta
+        for s in range(n):
+            start = field[t - 1] + s * step
+            middle = start + 0.5 * step
+            for b in range(state.shape[0]):
+                lane = LaneConstants(alpha[b], inv_a[b], Ms[b], ms_over_a[b], k_up[b] * delta, alphahat[b], c[b],
+                                     alpha_c[b])
+                m = state[b]
+                slope_start = _reversal_slope(start, m, delta, lane, chi_r[b],
+                                              reversal_weight(start, reversal, rayleigh_field[b]), kind)
+                slope_mid = _reversal_slope(middle, m + (0.5 * step) * slope_start, delta, lane, chi_r[b],
+                                            reversal_weight(middle, reversal, rayleigh_field[b]), kind)
+                state[b] = m + step * slope_mid
+        out[t] = state
+    return out
+
+
 # --------------------------------------------------------------------------- user API
 
 
@@ -487,12 +605,17 @@ def simulate_batch(field, batch: HysteresisBatch, magnetization0=0.0,
                    max_field_step: float = DEFAULT_MAX_FIELD_STEP) -> np.ndarray:
     """Magnetization (A/m) of every model of ``batch`` under one sampled field.
 
-    Returns an array of shape ``(len(field), batch.size)``; row 0 is ``magnetization0``.
+    Returns an array of shape ``(len(field), batch.size)``; row 0 is ``magnetization0``. Models (6)
+    alone, with the small-loop extension (``chi_r``) and with the reversal-dependent pinning
+    (``rayleigh_field``) each run their own kernel, so the options leave (6)'s numbers untouched.
     """
     field = _as_field(field)
     start = np.ascontiguousarray(np.broadcast_to(np.asarray(magnetization0, dtype=np.float64),
                                                  (batch.size,)))
     step = _check_max_field_step(max_field_step)
+    if batch.reversal_pinning:
+        return simulate_shared_reversal(field, start.copy(), batch.a, batch.k, batch.alpha, batch.Ms, batch.c,
+                                        batch.chi_r, batch.rayleigh_field, batch.kind, step)
     if batch.small_loop:
         return simulate_shared_small_loop(field, start.copy(), batch.a, batch.k, batch.alpha, batch.Ms, batch.c,
                                           batch.chi_r, batch.kind, step)
@@ -519,7 +642,8 @@ def simulate_magnetization(field, time=None, *, max_field_step: float = DEFAULT_
         M at the first sample, A/m (default 0: the demagnetized state).
     **params
         Overrides of :class:`HysteresisParams`: ``a``, ``k``, ``alpha``, ``Ms``, ``c``,
-        ``anhysteretic="ising"|"langevin"``, ``chi_r`` (the small-loop extension).
+        ``anhysteretic="ising"|"langevin"``, ``chi_r`` (the small-loop extension),
+        ``rayleigh_field`` (the reversal-dependent pinning).
 
     Returns
     -------
@@ -534,7 +658,7 @@ def simulate_magnetization(field, time=None, *, max_field_step: float = DEFAULT_
     unknown = set(params) - {f.name for f in dataclasses.fields(HysteresisParams)}
     if unknown:
         raise TypeError(f"simulate_magnetization: unknown parameter(s) {sorted(unknown)}; "
-                        f"expected some of a, k, alpha, Ms, c, anhysteretic, chi_r")
+                        f"expected some of a, k, alpha, Ms, c, anhysteretic, chi_r, rayleigh_field")
     field = _as_field(field)
     if time is not None:
         time = np.asarray(time, dtype=np.float64)
@@ -548,7 +672,8 @@ def simulate_magnetization(field, time=None, *, max_field_step: float = DEFAULT_
 
 
 __all__ = [
-    "DEFAULT_MAX_FIELD_STEP", "HysteresisParams", "HysteresisBatch", "ISING", "LANGEVIN", "SMALL_LOOP_EXTENSION",
+    "DEFAULT_MAX_FIELD_STEP", "HysteresisParams", "HysteresisBatch", "ISING", "LANGEVIN", "REVERSAL_PINNING",
+    "SMALL_LOOP_EXTENSION", "reversal_weight", "simulate_shared_reversal",
     "advance_each", "advance_one", "advance_shared", "advance_shared_small_loop", "simulate_shared_small_loop", "magnetization_slope", "simulate_batch",
     "simulate_magnetization", "simulate_shared", "substep_count", "validate_hysteresis_parameters",
 ]

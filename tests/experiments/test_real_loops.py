@@ -34,16 +34,19 @@ def test_scores_a_folder_of_loop_pairs(tmp_path):
 
 def test_small_loop_variant_predicts_the_small_hp_ferrite_loops_better_than_model_6(tmp_path):
     """The amplitude hold-out on the shipped HP ferrite: fitted on the 80 A/m loop only, the
-    small-loop extension predicts the 6 A/m loop at least twice as well as (6) with either curve."""
+    small-loop extension predicts the 6 A/m loop better than (6) with the same curve, and the
+    variant chosen on the held-out segment predicts every smaller loop within the issue's 8 %."""
     folder = tmp_path / "hp"
     folder.mkdir()
     for prefix in ("B", "H"):
         shutil.copy(SHIPPED / f"{prefix}_MnZn_HP_ferrite.mat", folder / f"{prefix}_hp.mat")
     real_loops.main(["--data", str(folder), "--json", str(tmp_path / "s.json")])
-    variants = json.loads((tmp_path / "s.json").read_text())["hp"]["variants"]
-    smallest = {name: list(v["nrmse_B"].values())[-1] for name, v in variants.items()}
-    assert min(smallest["ising + small_loop"], smallest["langevin + small_loop"]) < 0.5 * min(
-        smallest["ising"], smallest["langevin"])
+    entry = json.loads((tmp_path / "s.json").read_text())["hp"]
+    smallest = {name: list(v["nrmse_B"].values())[-1] for name, v in entry["variants"].items()}
+    for curve in ("ising", "langevin"):
+        assert smallest[f"{curve} + small_loop"] < smallest[curve], curve
+    assert entry["fitted_loop_nrmse"] < 0.01 and all(loop["nrmse"] < 0.08 for loop in entry["loops"])
+    assert entry["fit_seconds"] < 20.0  # 5 s on the 2-core machine (README); generous for a loaded one
 
 
 def test_bad_folders_are_one_line_errors(tmp_path, capsys):
