@@ -6,7 +6,7 @@ their subcommand runs (or shows its help), and they import nothing heavy (PyTorc
 Stable-Baselines3) at module level, so ``hyst-gym --help`` and ``hyst-gym COMMAND
 --help`` stay fast and work without the ``rl`` extra.
 
-Four subcommands (``demo``, ``reproduce``, ``train``, ``evaluate``) live in the
+Five subcommands (``demo``, ``reproduce``, ``train``, ``evaluate``, ``benchmark``) live in the
 benchmark's ``baselines/`` and ``experiments/`` packages, which only a clone of the
 repository has (the wheel installs ``hyst_gym`` alone). They are imported from the
 checkout that ``hyst_gym`` itself was imported from, never from a same-named package
@@ -48,6 +48,8 @@ SUBCOMMANDS = {
                             True),
     "train": Subcommand("baselines.train", "train a PPO, SAC or RecurrentPPO excitation policy", True),
     "evaluate": Subcommand("baselines.evaluate", "evaluate an agent, write per-episode CSV", True),
+    "benchmark": Subcommand("experiments.suite_v1", "run the benchmark suite (--suite v1): floors, baselines, RL, "
+                            "table and figure", True),
     "diagnose": Subcommand("hyst_gym.diagnose.command", "find which physics a recording shows that the model lacks"),
     "make-recording": Subcommand("hyst_gym.diagnose.make_recording",
                                  "write a synthetic recording with a concealed effect"),
@@ -128,6 +130,8 @@ def rl_modules_needed(args) -> tuple[str, ...]:
     if args.command == "train":
         recurrent = ("sb3_contrib",) if args.algo == "recurrent_ppo" else ()
         return ("torch", "stable_baselines3", "tensorboard") + recurrent
+    if args.command == "benchmark":
+        return ("torch", "stable_baselines3", "tensorboard", "cma")  # RL models and the CMA-ES designs
     if args.command == "demo" and not args.physics_only:
         return ("torch", "stable_baselines3", "tensorboard", "cma")  # PPO and the CMA-ES design
     return ()

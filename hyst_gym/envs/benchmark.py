@@ -3,7 +3,9 @@
 Measures env steps per second and simulated seconds per wall second for a single env
 (through ``gymnasium.make``, wrappers included) and for the native vector env at
 n = 1, 64 and 1024. Targets (issue 4, 2-core machine): >= 5,000 steps/s single and
->= 100,000 aggregate steps/s at n = 1024. Where the time goes: run
+>= 100,000 aggregate steps/s at n = 1024. Each task of the benchmark suite
+(:mod:`hyst_gym.envs.suite`) is timed the same way, single and at n = 1024 (issue 13 target:
+>= 20,000 and >= 200,000 steps/s). Where the time goes: run
 ``python -m cProfile -s tottime -m hyst_gym.envs.benchmark``.
 """
 
@@ -22,8 +24,8 @@ VECTOR_SIZES = (1, 64, 1024)
 TIME_BUDGET = 2.0
 
 
-def _time_single(budget: float) -> float:
-    env = gymnasium.make(ENV_ID)
+def _time_single(budget: float, env_id: str = ENV_ID) -> float:
+    env = gymnasium.make(env_id)
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1.0, 1.0, (4096, 1)).astype(np.float32)
     env.reset(seed=0)
@@ -40,8 +42,8 @@ def _time_single(budget: float) -> float:
     return steps / (time.perf_counter() - start)
 
 
-def _time_vector(n: int, budget: float) -> float:
-    venv = gymnasium.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point")
+def _time_vector(n: int, budget: float, env_id: str = ENV_ID) -> float:
+    venv = gymnasium.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1.0, 1.0, (16, n, 1))
     venv.reset(seed=0)
@@ -72,7 +74,26 @@ def run_benchmark(report) -> dict:
         report(f"native vector env n={n}: {rate:,.0f} env steps/s = {rate * config.dt:,.0f} simulated s per "
                f"wall s{target}")
     return {"env_single_steps_per_s": single, "env_vector_steps_per_s": vector,
-            "env_benchmark_config": config.summary()}
+            "env_benchmark_config": config.summary(), "suite_steps_per_s": run_suite_benchmark(report)}
+
+
+#: the suite's vector size and targets (issue 13), steps/s
+SUITE_VECTOR_SIZE = 1024
+SUITE_TARGETS = {"single": 20_000, str(SUITE_VECTOR_SIZE): 200_000}
+
+
+def run_suite_benchmark(report, budget: float = TIME_BUDGET / 2) -> dict:
+    """Steps/s of every suite task's env (registered id), single and at n = 1024."""
+    from .suite import TASKS
+
+    speeds = {}
+    for env_id in TASKS:
+        single = _time_single(budget, env_id)
+        vector = _time_vector(SUITE_VECTOR_SIZE, budget, env_id)
+        speeds[env_id] = {"single": single, str(SUITE_VECTOR_SIZE): vector}
+        report(f"suite task {env_id}: single {single:,.0f} steps/s, n={SUITE_VECTOR_SIZE} {vector:,.0f} steps/s "
+               f"(targets >= {SUITE_TARGETS['single']:,} and >= {SUITE_TARGETS[str(SUITE_VECTOR_SIZE)]:,})")
+    return speeds
 
 
 if __name__ == "__main__":

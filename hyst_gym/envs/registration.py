@@ -22,16 +22,24 @@ ENV_IDS = {
     "hyst_gym/Identification-v0": ("hyst_gym.envs.single:IdentificationEnv",
                                    "hyst_gym.envs.vector:IdentificationVectorEnv"),
 }
+#: the benchmark suite's task ids (presets of Excitation-v0 in :mod:`hyst_gym.envs.suite`, which
+#: is imported only when one is made, so registering stays cheap); each is made with ``task=id``
+SUITE_IDS = ("hyst_gym/HotCoil-v1", "hyst_gym/HotCoilNoisy-v1", "hyst_gym/HotCoilWideStart-v1",
+             "hyst_gym/CoolantFailure-v1", "hyst_gym/WarmCoil-v1", "hyst_gym/HotCoilLumped-v1")
+ENV_IDS.update({env_id: ("hyst_gym.envs.suite:make_env", "hyst_gym.envs.suite:make_vector_env")
+                for env_id in SUITE_IDS})
 
 
 def register_envs() -> None:
-    """Register the three ids (idempotent)."""
+    """Register the ids of :data:`ENV_IDS` (idempotent)."""
     for env_id, (entry_point, vector_entry_point) in ENV_IDS.items():
         if env_id in gymnasium.registry:
             continue
-        gymnasium.register(id=env_id, entry_point=entry_point, vector_entry_point=vector_entry_point)
+        kwargs = {"task": env_id} if env_id in SUITE_IDS else {}
+        gymnasium.register(id=env_id, entry_point=entry_point, vector_entry_point=vector_entry_point,
+                           kwargs=kwargs)
 
 
 register_envs()
 
-__all__ = ["ENV_IDS", "register_envs"]
+__all__ = ["ENV_IDS", "SUITE_IDS", "register_envs"]

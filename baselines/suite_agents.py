@@ -1,0 +1,112 @@
+"""Agents of the benchmark suite v1 (``hyst_gym.envs.suite``): inputs, a thermostat, an oracle.
+
+Every agent here is a :class:`DesignBank`: one *design* per sub-environment, so the
+same object plays one design on many draws (the held-out evaluation) or many designs on
+one draw (the oracle's per-draw search). A design is
+
+* an open-loop field sequence ``H_t`` (A/m, already slew- and field-limited by
+  :func:`~baselines.schedules.apply_limits`), and
+* an optional thermostat: while the coil temperature it reads is above
+  ``temperature_limit - margin`` (K) the command is 0 (the coil cools), else ``H_t``.
+  The temperature is read either from the estimate (``a`` is proportional to T, eq. (4):
+  ``T_hat = T_ref*a_hat/a_ref``, a feedback rule that needs no sensor) or, for the
+  clairvoyant oracle only, from the true temperature in ``info`` (``reads_truth``).
+
+The thermostat's timing follows its own episode step count, like a
+:class:`~baselines.agents.ScheduleAgent`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .agents import Agent
+from .schedules import ExcitationLimits, Schedule, apply_limits
+
+
+@dataclass(frozen=True)
+class Design:
+    """One input: ``schedule`` (a :class:`~baselines.schedules.Schedule`), and a thermostat
+    margin in K (``None``: open loop), reading the estimate or (``truth``) the true temperature."""
+
+    name: str
+    schedule: Schedule
+    margin: float | None = None
+    truth: bool = False
+
+    @property
+    def kind(self) -> str:
+        if self.margin is None:
+            return "open_loop"
+        return "oracle" if self.truth else "feedback"
+
+
+class DesignBank(Agent):
+    """Plays ``designs[i]`` in sub-environment ``i`` (or one design everywhere when given one).
+
+    ``config`` is the task's :class:`~hyst_gym.envs.config.EnvConfig` (limits, Theta, the
+    a(T) law and the temperature limit); ``estimate_index`` is where the observation holds
+    the normalized a_estimate.
+    """
+
+    name = "design_bank"
+
+    def __init__(self, designs, config, estimate_index: int, horizon_steps: int | None = None):
+        super().__init__()
+        self.designs = tuple(designs)
+        self.config = config
+        self.estimate_index = int(estimate_index)
+        steps = horizon_steps or config.episode_steps
+        limits = ExcitationLimits(config.field_limit, config.slew_rate_limit, config.dt)
+        time = config.dt * np.arange(1, steps + 1)
+        self._commands = np.array([apply_limits(d.schedule.field(time), limits) for d in self.designs])
+        self._margin = np.array([np.inf if d.margin is None else d.margin for d in self.designs])
+        self._truth = np.array([d.truth for d in self.designs])
+        self.reads_truth = bool(self._truth.any())
+        self._steps = np.zeros(0, dtype=np.int64)
+        self._temperature = None
+        if len(self.designs) == 1:
+            self.name = self.designs[0].name
+
+    def reset(self, seed=None):
+        super().reset(seed)
+        self._steps = np.zeros(0, dtype=np.int64)
+        self._temperature = None
+
+    def observe(self, infos) -> None:
+        """The clairvoyant thermostat reads the true temperature of the last step from ``infos``."""
+        self._temperature = np.asarray(infos["temperature"], dtype=np.float64)
+
+    def _rows(self, n):
+        if len(self.designs) == 1:
+            return np.zeros(n, dtype=np.int64)
+        if len(self.designs) != n:
+            raise ValueError(f"DesignBank has {len(self.designs)} designs for {n} sub-environments")
+        return np.arange(n)
+
+    def act_batch(self, observations, episode_start):
+        config = self.config
+        n = observations.shape[0]
+        if self._steps.shape[0] != n:
+            self._steps = np.zeros(n, dtype=np.int64)
+        self._steps[episode_start] = 0
+        rows = self._rows(n)
+        index = np.minimum(self._steps, self._commands.shape[1] - 1)
+        command = self._commands[rows, index]
+        self._steps += 1
+        gated = np.isfinite(self._margin[rows])
+        if gated.any():
+            estimate = config.theta_min + 0.5 * (observations[:, self.estimate_index] + 1.0) * config.theta_width
+            temperature = config.thermal.reference_temperature * estimate / config.thermal.a_reference
+            if self._truth[rows].any():
+                if self._temperature is None:
+                    raise ValueError("a clairvoyant design needs observe(infos) before each action")
+                temperature = np.where(self._truth[rows], self._temperature, temperature)
+            hot = gated & (temperature > config.temperature_limit - self._margin[rows])
+            command = np.where(hot, 0.0, command)
+        return (command / config.field_limit).reshape(n, 1).astype(np.float32)
+
+
+__all__ = ["Design", "DesignBank"]

@@ -1,0 +1,141 @@
+"""Benchmark suite v1 (issue 13): versioned task presets behind registered Gymnasium ids.
+
+Each task is a preset of :class:`~hyst_gym.envs.config.EnvConfig` (overrides of its fields,
+plain values and frozen physics dataclasses) behind an id with a version suffix, made like
+any hyst-gym id::
+
+    env = gymnasium.make("hyst_gym/HotCoil-v1")
+    venv = gymnasium.make_vec("hyst_gym/HotCoil-v1", num_envs=1024, vectorization_mode="vector_entry_point")
+
+Every task is ``Excitation`` mode (the agent drives the coil field; the built-in min-max
+estimator identifies a) and tells one story of the paper's application: a milling
+actuator whose coil heats up while it works. Joule heating ``R*(H/n)**2`` raises the
+temperature, a follows it (eq. (4), about 24 A/m per K), and the episode ends when the coil
+passes its temperature limit (the env's constraint; the reward then charges every
+remaining step at width(Theta)). The cooling path of a small, lightly cooled actuator is
+set by :class:`~hyst_gym.physics.ThermalParams` (heat capacity and thermal resistance);
+the starting temperature, drawn per episode over 5..45 C (a machine started cold or after
+a long job), decides how much heating an episode can afford. An input that excites hard
+identifies a fast but overheats a warm coil; an open-loop input must be safe for the
+warmest start. The estimate itself is a thermometer (a is proportional to T), so feedback
+can spend the budget a cold coil has.
+
+Task metric (``experiments/suite_v1.py``): the mean |a_estimate - a_true| over the whole
+episode horizon, A/m, counting width(Theta) for every step after an overheat (the env's
+own reward, ``-|error|/width(Theta)`` per step and ``-remaining steps`` at a violation,
+is minus this metric in units of width(Theta) per step, less the soft penalty near the
+limit).
+
+Common settings (:data:`COMMON`): dt = 0.05 s, 200 steps (10 s), field limit 1e5 A/m,
+slew 5e4 A/m/s, Theta = [6500, 8100] A/m (a from 5 C to 62 C), thetahat(0) = 7300 A/m
+(about 39 C), temperature limit 333.15 K (60 C), output noise 1e-4, hysteresis substeps of at most
+625 A/m (a full-slew step of 2500 A/m costs 4 substeps per model, against 10 at the default
+250 A/m; the midpoint rule's error grows with the square of the substep, and plant and bank
+share the discretization, so the estimator still identifies the simulated a). With 250 A/m the n = 1024 env missed the 200,000 steps/s target.
+"""
+
+from __future__ import annotations
+
+from ..physics import ThermalParams
+
+SUITE_VERSION = "v1"
+
+#: EnvConfig overrides shared by every v1 task
+COMMON = {
+    "temperature_mode": "drifting",
+    "initial_temperature_range": (278.15, 318.15),
+    "ambient_drift_rate_range": (-0.05, 0.05),
+    "temperature_limit": 333.15,
+    "dt": 0.05,
+    "episode_steps": 200,
+    "field_limit": 1.0e5,
+    "slew_rate_limit": 5.0e4,
+    "theta_min": 6500.0,
+    "theta_max": 8100.0,
+    "initial_estimate": 7300.0,
+    "max_field_step": 625.0,
+}
+
+#: a small actuator's coil: C_th = 10 J/K, R_th = 2 K/W (time constant 20 s); a held
+#: 81 kA/m (8.1 A, 66 W) heats it by 6.6 K/s at first, 131 K at steady state
+WARM_THERMAL = ThermalParams(heat_capacity=10.0, thermal_resistance=2.0)
+#: the same coil with half the heat capacity and twice the thermal resistance (13 K/s at 81 kA/m)
+HOT_THERMAL = ThermalParams(heat_capacity=5.0, thermal_resistance=4.0)
+
+
+def _task(description: str, difficulty: int, **overrides) -> dict:
+    return {"description": description, "difficulty": difficulty, "config": {**COMMON, **overrides}}
+
+
+#: id -> {"description", "difficulty" (1 = easiest), "config": EnvConfig overrides}: the tasks
+#: that entered the suite (measured headroom, ``experiments/suite_v1.py``)
+SUITE_V1 = {
+    "hyst_gym/HotCoil-v1": _task(
+        "Hot coil: a small, lightly cooled actuator (C_th 5 J/K, R_th 4 K/W) started at 5..45 C; a held "
+        "81 kA/m heats it by 13 K/s, so a warm start allows about one second of full excitation", 1,
+        thermal=HOT_THERMAL),
+    "hyst_gym/HotCoilNoisy-v1": _task(
+        "Hot coil with a 10x noisier sensor (output noise 1e-3 of full scale): identification needs more "
+        "excitation than the thermal budget of a warm start allows", 2, thermal=HOT_THERMAL,
+        output_noise=1.0e-3),
+    "hyst_gym/HotCoilWideStart-v1": _task(
+        "Hot coil started anywhere from -15 C (a machine in a cold hall) to 45 C, Theta widened to match",
+        3, thermal=HOT_THERMAL, initial_temperature_range=(258.15, 318.15), theta_min=6100.0),
+    "hyst_gym/CoolantFailure-v1": _task(
+        "Coolant failure: the hot coil with the ambient rising at 0..1 K/s (the coolant stopped at an "
+        "unknown rate), so the budget shrinks while the agent works", 4, thermal=HOT_THERMAL,
+        ambient_drift_rate_range=(0.0, 1.0)),
+}
+#: candidates measured and rejected (headroom CI not above 25 %); registered, so the
+#: measurement can be repeated, but not part of the suite
+REJECTED_V1 = {
+    "hyst_gym/WarmCoil-v1": _task(
+        "Warm coil: C_th 10 J/K, R_th 2 K/W (6.6 K/s at 81 kA/m), started at 5..45 C", 0, thermal=WARM_THERMAL),
+    "hyst_gym/HotCoilLumped-v1": _task(
+        "Hot coil on the lumped mechanical transducer (13): displacement and velocity sensed, the vector "
+        "estimator (24)-(25) identifies a", 0, thermal=HOT_THERMAL, transducer="lumped"),
+}
+TASKS = {**SUITE_V1, **REJECTED_V1}
+
+
+def suite_tasks(version: str = SUITE_VERSION) -> dict:
+    """The tasks of suite ``version`` (only ``"v1"``), easiest first."""
+    if version != SUITE_VERSION:
+        raise ValueError(f"unknown suite version {version!r}; expected {SUITE_VERSION!r}")
+    return dict(sorted(SUITE_V1.items(), key=lambda item: item[1]["difficulty"]))
+
+
+def task_config(task_id: str):
+    """The :class:`~hyst_gym.envs.config.EnvConfig` of a suite task."""
+    from .config import make_config
+
+    if task_id not in TASKS:
+        raise ValueError(f"unknown suite task {task_id!r}; expected one of {sorted(TASKS)}")
+    return make_config(**TASKS[task_id]["config"])
+
+
+
+
+def _task_overrides(task: str, overrides: dict) -> dict:
+    if task not in TASKS:
+        raise ValueError(f"unknown suite task {task!r}; expected one of {sorted(TASKS)}")
+    return {**TASKS[task]["config"], **overrides}
+
+
+def make_env(task: str, **overrides):
+    """Gymnasium entry point of a suite id: the single ``ExcitationEnv`` with the task's preset
+    (``overrides``: EnvConfig fields on top of it, or the env's own keywords)."""
+    from .single import ExcitationEnv
+
+    return ExcitationEnv(**_task_overrides(task, overrides))
+
+
+def make_vector_env(task: str, num_envs: int = 1, **overrides):
+    """Vector entry point of a suite id: the native ``ExcitationVectorEnv`` with the task's preset."""
+    from .vector import ExcitationVectorEnv
+
+    return ExcitationVectorEnv(num_envs, **_task_overrides(task, overrides))
+
+
+__all__ = ["COMMON", "HOT_THERMAL", "REJECTED_V1", "SUITE_V1", "TASKS", "SUITE_VERSION", "WARM_THERMAL", "make_env", "make_vector_env",
+           "suite_tasks", "task_config"]
