@@ -426,7 +426,9 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
         if candidate.accepted:
             candidate.plausibility = check_plausibility(candidate, weights)
     prior_notes = _prior_notes(base)
-    decision = decide(candidates, base_heldout, recording.channels, mechanics_pinned=bool(prior_notes))
+    base_residual = _residual(base.model, base.values, weights, held_mask)[2]
+    decision = decide(candidates, base_heldout, recording.channels, mechanics_pinned=bool(prior_notes),
+                      base_whiteness=locate.whiteness(base_residual))
     notes = decision.notes + prior_notes
     verdict = decision.verdict
     bar.update(1)

@@ -24,7 +24,9 @@ Verdicts:
   them and names the measurement that would separate them;
 * ``unexplained`` -- the base model misses by more than ``UNEXPLAINED_RMSE`` noise units and
   no plausible candidate explains most of it; the report says where the residual lives;
-* ``none`` -- the base model predicts the held-out block to within noise.
+* ``none`` -- the base model predicts the held-out block to within noise, and its held-out
+  residual is white (Ljung-Box, ``WHITENESS_P``); a residual within the noise level but with
+  structure in time is ``unexplained``.
 
 ``confidence`` (0-1) is the verdict's margin over the nearest *other* verdict it could have
 been, each margin scaled to 0 at the bar that separates the two and 1 far from it:
@@ -42,7 +44,9 @@ been, each margin scaled to 0 at the bar that separates the two and 1 far from i
   into its own parameters within noise (in the concealed study it did so for most
   out-of-vocabulary effects), so ``none`` never reaches the confidence of a positive finding.
   0.5 flat when the base model explains the record only with its mechanics pinned at their
-  prior (the verdict is then ``unexplained``).
+  prior (the verdict is then ``unexplained``); for a residual within the noise level but not
+  white (``unexplained``), 0.5 times how many decades its Ljung-Box p-value lies below
+  ``WHITENESS_P``, over 6.
 
 It is a margin, not a probability; how often verdicts at each confidence are right is
 measured in ``experiments/diagnose_concealed.py`` (its reliability table).
@@ -71,6 +75,11 @@ NAMING_IMPROVEMENT = 0.5
 TIE_Z = 2.0
 #: Contiguous blocks of the held-out residual whose means give that standard error.
 TIE_BLOCKS = 20
+#: A base model within the noise level whose held-out residual fails the Ljung-Box whiteness test at
+#: this p-value is not ``none``: in the concealed study white residuals of ``none`` recordings gave
+#: Q of 17-30 over 20 lags (p >= 0.07), effects the base model absorbs into its RMSE but not into the
+#: shape of its residual gave Q in the hundreds or thousands.
+WHITENESS_P = 1e-6
 #: Independent time blocks for the consistency check.
 BLOCKS = 3
 #: Block estimates of the main parameter agree when they lie within this relative spread...
@@ -218,11 +227,13 @@ def naming_margin(candidate) -> float:
     return float(np.clip(max(by_share, by_level), 0.0, 1.0))
 
 
-def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False) -> Decision:
+def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False, base_whiteness=None) -> Decision:
     """The verdict from fitted, accepted and plausibility-checked candidates (module docstring).
 
     ``mechanics_pinned``: the base model's mechanics ran into their prior; a base model that
-    then explains the record is not trusted to mean ``none``."""
+    then explains the record is not trusted to mean ``none``. ``base_whiteness``: the Ljung-Box
+    test of the base model's held-out residual (:func:`hyst_gym.diagnose.locate.whiteness`); a
+    residual within the noise level but not white is not ``none`` either."""
     plausible = sorted([c for c in candidates if c.accepted and c.plausibility.plausible],
                        key=lambda c: c.heldout_rmse)
     rejected = [c for c in candidates if c.accepted and not c.plausibility.plausible]
@@ -256,6 +267,15 @@ def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False) -
     # margins to accepting the best candidate and to 'unexplained'
     confidence = min(1.0 - best_improvement / ACCEPT_IMPROVEMENT,
                      (UNEXPLAINED_RMSE - base_heldout) / (UNEXPLAINED_RMSE - 1.0))
+    if base_whiteness is not None and base_whiteness["p_value"] < WHITENESS_P:
+        # within the noise level, yet the residual has structure in time: something is left out
+        notes.append(f"the base model is within {base_heldout:.2f} noise units of the held-out block, but its "
+                     f"residual is not white (Ljung-Box Q = {base_whiteness['ljung_box_q']:.0f} over "
+                     f"{base_whiteness['lags']} lags, p = {base_whiteness['p_value']:.1g}): the model leaves "
+                     "out something that no candidate explains")
+        # margin to 'none': how far p lies below the bar, in decades (6 decades = the full margin)
+        decades = np.log10(WHITENESS_P / max(base_whiteness["p_value"], 1e-300))
+        return Decision("unexplained", NONE_CONFIDENCE_CEILING * float(np.clip(decades / 6.0, 0.0, 1.0)), notes=notes)
     if mechanics_pinned:
         # the data alone would say 'none'; the stated mechanics say otherwise: an even call
         return Decision("unexplained", 0.5, notes=notes)

@@ -100,6 +100,26 @@ def test_none_is_never_as_confident_as_a_positive_finding():
     assert named.verdict == "sensor_lag" and named.confidence > 0.9
 
 
+def test_structured_residual_within_the_noise_is_not_none():
+    """A base model at the noise level is `none` only if its held-out residual is white: the same
+    candidates give `unexplained` when the residual has structure in time, with the test's numbers."""
+    from hyst_gym.diagnose.locate import whiteness
+
+    rng = np.random.default_rng(3)
+    white = rng.standard_normal(3000)
+    # AR(1) with lag-1 correlation 0.2, rescaled to the same RMS: as absorbed effects left it
+    structured = np.empty_like(white)
+    structured[0] = white[0]
+    for i in range(1, white.size):
+        structured[i] = 0.2 * structured[i - 1] + white[i]
+    structured *= np.sqrt(np.mean(white ** 2) / np.mean(structured ** 2))
+    candidates = [_Candidate("field_bias", 1.0, base=1.05)]
+    assert decide(candidates, 1.05, ("displacement",), base_whiteness=whiteness(white)).verdict == "none"
+    decision = decide(candidates, 1.05, ("displacement",), base_whiteness=whiteness(structured))
+    assert decision.verdict == "unexplained" and "not white" in decision.notes[-1]
+    assert 0.0 < decision.confidence <= 0.5
+
+
 def test_partial_explanation_is_not_a_name():
     # 30 % better but still 7 noise units off: neither halved nor within 2 noise units
     decision = decide([_Candidate("thermal_drift", 7.0)], 10.0, ("magnetization",))
