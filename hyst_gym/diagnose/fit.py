@@ -18,6 +18,12 @@ from scipy.stats import qmc
 from .model import Model
 
 MAGNETIC = {"a", "k", "rho", "Ms", "c", "H0", "k_e", "heating", "tau_th"}
+#: Relative tolerances (xtol, ftol) of the local fits. The decisions downstream compare sums of
+#: squares on bars of 20 % (held-out) and 10 (BIC, i.e. a sum of squares of thousands changing by
+#: about 1 %); 1e-5 stops a fit when its sum of squares changes by less than a thousandth of that.
+#: On three study recordings it cut the evaluations by 20-70 % (CPU 27 -> 17 s, 15 -> 7 s), with the
+#: same verdicts and held-out RMSEs within 1.5 % (1e-8 before).
+FIT_TOLERANCE = 1e-5
 
 
 @dataclass
@@ -99,7 +105,7 @@ def local_fit(model: Model, weights: dict, mask, start: dict | None = None, max_
     if names:
         result = scipy.optimize.least_squares(objective, x0, jac=objective.jacobian, bounds=(lower, upper),
                                               method="trf", x_scale="jac", max_nfev=max_nfev,
-                                              xtol=1e-8, ftol=1e-8)
+                                              xtol=FIT_TOLERANCE, ftol=FIT_TOLERANCE)
         x, residual, J = result.x, result.fun, result.jac
     else:
         x, residual, J = x0, objective(x0), np.zeros((objective(x0).size, 0))
