@@ -7,7 +7,16 @@ one draw (the oracle's per-draw search). A design is
 * an open-loop field sequence ``H_t`` (A/m, already slew- and field-limited by
   :func:`~baselines.schedules.apply_limits`), and
 * an optional thermostat: while the coil temperature it reads is above
-  ``temperature_limit - margin`` (K) the command is 0 (the coil cools), else ``H_t``.
+  ``temperature_limit - margin`` (K) the command is 0 (the coil cools), else ``H_t``; or,
+  with ``span`` (K) set, a proportional rule: the command is ``H_t`` scaled by
+  ``clip((temperature_limit - margin - T)/span, 0, 1)``, so the input grows with the
+  thermal budget it reads (full at ``span`` K below the switch-off point);
+* an optional identification gate (``gate`` set): the command is scaled by ``tail`` while
+  the design judges a identified. The feedback rule reads the estimator's tuning error from
+  the observation (identified while its normalized magnitude is at most ``gate``, i.e. the
+  min-max law has nothing left to adapt: excite until the estimator is tuned, then idle); the
+  clairvoyant version reads the true error (identified while |a_estimate - a_true| <= ``gate``
+  A/m).
   The temperature is read either from the estimate (``a`` is proportional to T, eq. (4):
   ``T_hat = T_ref*a_hat/a_ref``, a feedback rule that needs no sensor) or, for the
   clairvoyant oracle only, from the true temperature in ``info`` (``reads_truth``).
@@ -29,18 +38,40 @@ from .schedules import ExcitationLimits, Schedule, apply_limits
 @dataclass(frozen=True)
 class Design:
     """One input: ``schedule`` (a :class:`~baselines.schedules.Schedule`), and a thermostat
-    margin in K (``None``: open loop), reading the estimate or (``truth``) the true temperature."""
+    margin in K (``None``: open loop), reading the estimate or (``truth``) the true temperature;
+    ``span`` (K) makes the thermostat proportional (see the module doc)."""
 
     name: str
     schedule: Schedule
     margin: float | None = None
     truth: bool = False
+    span: float | None = None
+    gate: float | None = None
+    tail: float = 0.1
 
     @property
     def kind(self) -> str:
-        if self.margin is None:
+        if self.margin is None and self.gate is None:
             return "open_loop"
         return "oracle" if self.truth else "feedback"
+
+
+@dataclass(frozen=True)
+class RampDither(Schedule):
+    """A ramp to ``peak`` A/m in ``duration`` s, then a dither ``dither*sin(2 pi f (t - duration))``
+    about it (A/m, Hz): go to a sensitive field once, then keep the material moving on minor loops."""
+
+    peak: float = 5.0e4
+    duration: float = 1.5
+    dither: float = 1.0e4
+    frequency: float = 0.5
+    name = "ramp_dither"
+
+    def field(self, time):
+        time = np.asarray(time, dtype=np.float64)
+        after = np.maximum(time - self.duration, 0.0)
+        return self.peak * np.minimum(time / self.duration, 1.0) + self.dither * np.sin(
+            2 * np.pi * self.frequency * after)
 
 
 class DesignBank(Agent):
@@ -64,9 +95,16 @@ class DesignBank(Agent):
         self._commands = np.array([apply_limits(d.schedule.field(time), limits) for d in self.designs])
         self._margin = np.array([np.inf if d.margin is None else d.margin for d in self.designs])
         self._truth = np.array([d.truth for d in self.designs])
+        self._span = np.array([0.0 if d.span is None else d.span for d in self.designs])
+        self._gate = np.array([np.nan if d.gate is None else d.gate for d in self.designs])
+        self._tail = np.array([d.tail for d in self.designs])
+        from hyst_gym.envs.core import EXCITATION, observation_names
+
+        self.tuning_index = observation_names(config, EXCITATION).index("tuning_error")
         self.reads_truth = bool(self._truth.any())
         self._steps = np.zeros(0, dtype=np.int64)
         self._temperature = None
+        self._error = None
         if len(self.designs) == 1:
             self.name = self.designs[0].name
 
@@ -74,10 +112,13 @@ class DesignBank(Agent):
         super().reset(seed)
         self._steps = np.zeros(0, dtype=np.int64)
         self._temperature = None
+        self._error = None
 
     def observe(self, infos) -> None:
-        """The clairvoyant thermostat reads the true temperature of the last step from ``infos``."""
+        """The clairvoyant designs read the true temperature and estimation error of the last step."""
         self._temperature = np.asarray(infos["temperature"], dtype=np.float64)
+        self._error = np.abs(np.asarray(infos["a_estimate"], dtype=np.float64) -
+                             np.asarray(infos["a_true"], dtype=np.float64))
 
     def _rows(self, n):
         if len(self.designs) == 1:
@@ -104,9 +145,22 @@ class DesignBank(Agent):
                 if self._temperature is None:
                     raise ValueError("a clairvoyant design needs observe(infos) before each action")
                 temperature = np.where(self._truth[rows], self._temperature, temperature)
-            hot = gated & (temperature > config.temperature_limit - self._margin[rows])
-            command = np.where(hot, 0.0, command)
+            budget = config.temperature_limit - self._margin[rows] - temperature
+            span = self._span[rows]
+            scale = np.where(span > 0, np.clip(budget / np.where(span > 0, span, 1.0), 0.0, 1.0),
+                             (budget >= 0).astype(np.float64))
+            command = np.where(gated, command * scale, command)
+        gate = self._gate[rows]
+        identifying = np.isfinite(gate)
+        if identifying.any():
+            tuned = np.abs(observations[:, self.tuning_index]) <= np.nan_to_num(gate)
+            truth = self._truth[rows] & identifying
+            if truth.any():
+                if self._error is None:
+                    raise ValueError("a clairvoyant design needs observe(infos) before each action")
+                tuned = np.where(truth, self._error <= np.nan_to_num(gate), tuned)
+            command = np.where(identifying & tuned, command * self._tail[rows], command)
         return (command / config.field_limit).reshape(n, 1).astype(np.float32)
 
 
-__all__ = ["Design", "DesignBank"]
+__all__ = ["Design", "DesignBank", "RampDither"]

@@ -28,13 +28,16 @@ Agents (kind in the JSON):
   reference (the multiple-model estimator, which picks the bank's best node, tracks a far
   better on these tasks whatever the input: see the JSON);
 * ``feedback``: ``thermostat``, the tuned biased sine switched off while the temperature
-  read from the estimate (a is proportional to T) is within a margin of the limit
-  (:class:`baselines.suite_agents.DesignBank`), tuned on the tuning draws;
+  read from the estimate (a is proportional to T) is within a margin of the limit, and
+  ``proportional``, a +-80 kA/m sine scaled by the thermal budget read from the estimate, and
+  ``identify_then_idle``, a sine that idles once the estimator's tuning error (observed) says a
+  is identified (:class:`baselines.suite_agents.DesignBank`), each tuned on the tuning draws;
 * ``rl``: PPO and SAC (:mod:`baselines.train`, dense env reward, 8 stacked frames), 10 seeds
   in the full profile, scored per seed on the held-out draws.
 
 Floor (kind ``oracle``): per held-out draw, the best design of the whole family (open-loop
-designs, estimate thermostats, and clairvoyant thermostats that read the *true* temperature)
+designs, the feedback rules, and their clairvoyant versions that read the *true* temperature and
+the *true* estimation error)
 given the truth of that draw: the design is chosen on a replicate of the draw with the same
 initial temperature and ambient drift and independent measurement noise (so the choice uses
 the plant's truth, not the noise's luck), then scored on the draw itself.
@@ -72,6 +75,8 @@ RAW = RESULTS / "raw" / "suite_v1"
 README = ROOT / "README.md"
 README_AREA = "suite-v1"
 HEADROOM_TARGET = 0.25
+#: wall seconds per timed case of the env speed measurement (hyst_gym.envs.benchmark)
+SPEED_BUDGET_S = 1.0
 RL_TARGET = 0.5
 
 
@@ -102,18 +107,51 @@ SINE_AMPLITUDES = (1.0e4, 2.0e4, 4.0e4, 8.0e4)
 SINE_FREQUENCIES = (0.1, 0.25, 0.5)
 RAMP_PEAKS = (5.0e4, 8.0e4, 1.0e5)
 RAMP_DURATIONS = (1.6, 4.0, 6.0)
+DITHER_PEAKS = (3.0e4, 5.0e4, 7.0e4)
+DITHER_AMPLITUDES = (5.0e3, 1.0e4, 2.0e4)
+DITHER_FREQUENCIES = (0.5, 1.0)
+DITHER_DURATION = 1.5  # s to reach the peak
+DITHER_GATE_TUNING = (0.05, 0.1)
+DITHER_GATE_ERRORS = (10.0, 25.0)
+DITHER_TAIL = 0.25
 THERMOSTAT_OFFSETS = (4.0e4, 6.0e4)
 THERMOSTAT_AMPLITUDES = (2.0e4, 4.0e4)
 THERMOSTAT_FREQUENCIES = (0.25, 0.5)
 THERMOSTAT_MARGINS = (2.0, 5.0, 10.0)  # K below the limit
+#: the proportional rule: a zero-mean sine scaled by the budget read (K of span)
+PROPORTIONAL_AMPLITUDE = 8.0e4
+PROPORTIONAL_FREQUENCIES = (0.25, 0.5)
+PROPORTIONAL_MARGINS = (2.0, 5.0, 10.0)
+PROPORTIONAL_SPANS = (10.0, 20.0, 40.0)
+#: the identification gate: a zero-mean sine, idled to ``tail`` of itself once a is identified
+GATE_AMPLITUDES = (4.0e4, 8.0e4)
+GATE_FREQUENCY = 0.5
+GATE_TAILS = (0.1, 0.25)
+GATE_TUNING = (0.05, 0.1, 0.2)   # |normalized tuning error| at most this: identified
+GATE_ERRORS = (10.0, 25.0, 50.0)  # A/m, the clairvoyant version: |a_estimate - a_true| at most this
+GATE_MARGIN = 2.0                # K: every gated design also stops 2 K below the limit
 
 
 def design_family():
-    """Every design of the family: open-loop sines and ramps, estimate and true-temperature thermostats."""
+    """Every design of the family: open-loop sines and ramps; on/off and proportional thermostats on the
+    estimate, and the same on the true temperature (the oracle's)."""
     from baselines.schedules import Ramp, Sine
-    from baselines.suite_agents import Design
+    from baselines.suite_agents import Design, RampDither
 
-    designs = []
+    designs = [Design("idle", Sine(amplitude=0.0))]  # no excitation at all: the coil stays cool
+    dithers = [RampDither(peak, DITHER_DURATION, dither, frequency) for peak, dither, frequency in
+               itertools.product(DITHER_PEAKS, DITHER_AMPLITUDES, DITHER_FREQUENCIES)]
+    for dither in dithers:
+        label = f"{dither.peak:g}_{dither.dither:g}_{dither.frequency:g}"
+        designs.append(Design(f"dither_{label}", dither))
+        designs.append(Design(f"oracle_dither_{label}", dither, GATE_MARGIN, True))
+        # ramp to the peak, dither until a is identified, then back off to a quarter of the field
+        for gate in DITHER_GATE_TUNING:
+            designs.append(Design(f"gate_dither_{label}_{gate:g}", dither, GATE_MARGIN, gate=gate,
+                                  tail=DITHER_TAIL))
+        for gate in DITHER_GATE_ERRORS:
+            designs.append(Design(f"oracle_gate_dither_{label}_{gate:g}", dither, GATE_MARGIN, True, gate=gate,
+                                  tail=DITHER_TAIL))
     for offset, amplitude, frequency in itertools.product(SINE_OFFSETS, SINE_AMPLITUDES, SINE_FREQUENCIES):
         if offset + amplitude <= 1.0e5:
             designs.append(Design(f"sine_{offset:g}_{amplitude:g}_{frequency:g}",
@@ -126,6 +164,17 @@ def design_family():
             label = "oracle_thermostat" if truth else "thermostat"
             designs.append(Design(f"{label}_{offset:g}_{amplitude:g}_{frequency:g}_{margin:g}",
                                   Sine(amplitude=amplitude, frequency=frequency, offset=offset), margin, truth))
+        for frequency, margin, span in itertools.product(PROPORTIONAL_FREQUENCIES, PROPORTIONAL_MARGINS,
+                                                          PROPORTIONAL_SPANS):
+            label = "oracle_proportional" if truth else "proportional"
+            designs.append(Design(f"{label}_{frequency:g}_{margin:g}_{span:g}",
+                                  Sine(amplitude=PROPORTIONAL_AMPLITUDE, frequency=frequency), margin, truth, span))
+        for amplitude, tail, gate in itertools.product(GATE_AMPLITUDES, GATE_TAILS,
+                                                       GATE_ERRORS if truth else GATE_TUNING):
+            label = "oracle_gate" if truth else "gate"
+            designs.append(Design(f"{label}_{amplitude:g}_{tail:g}_{gate:g}",
+                                  Sine(amplitude=amplitude, frequency=GATE_FREQUENCY), GATE_MARGIN, truth,
+                                  gate=gate, tail=tail))
     return designs
 
 
@@ -347,14 +396,18 @@ def evaluate_task(task_id: str, profile: Profile, raw: pathlib.Path = RAW, log=p
     oracle, choice = oracle_scores(task_id, family, held_scores, draws, heldout)
     tuned_iqm = np.array([iqm(row) for row in tune_scores])
 
-    def tuned(kind):
-        members = np.flatnonzero(kinds == kind)
+    def tuned(kind, prefix=""):
+        members = [i for i in np.flatnonzero(kinds == kind) if family[i].name.startswith(prefix)]
         return members[int(np.argmin(tuned_iqm[members]))]
 
-    best_open, best_feedback = tuned("open_loop"), tuned("feedback")
+    best_open = tuned("open_loop")
+    best_thermostat, best_proportional = tuned("feedback", "thermostat_"), tuned("feedback", "proportional_")
+    best_gate = tuned("feedback", "gate_")
     agents = {"ramp": ("open_loop", play(design_agent([Design("ramp", Ramp())], config), task_id, heldout)[0]),
               "tuned_open_loop": ("open_loop", held_scores[best_open]),
-              "thermostat": ("feedback", held_scores[best_feedback])}
+              "thermostat": ("feedback", held_scores[best_thermostat]),
+              "proportional": ("feedback", held_scores[best_proportional]),
+              "identify_then_idle": ("feedback", held_scores[best_gate])}
     log(f"[suite] {task_slug(task_id)}: family of {len(family)} tuned and played ({time.time() - start:.0f} s)")
     fisher = Design("optimal_design_prior", fisher_design(config, profile))
     agents["optimal_design_prior"] = ("open_loop", play(design_agent([fisher], config), task_id, heldout)[0])
@@ -372,13 +425,16 @@ def evaluate_task(task_id: str, profile: Profile, raw: pathlib.Path = RAW, log=p
             continue
         rows = [play(PolicyAgent.load(folder), task_id, heldout)[0] for _, folder in found]
         agents[algo] = ("rl", np.array(rows))
+        configs = [json.loads((folder / "config.json").read_text()) for _, folder in found]
         curves[algo] = {"seeds": [seed for seed, _ in found],
-                        "steps": profile.rl_steps[algo],
+                        "steps": [config.get("trained_steps") for config in configs],
+                        "train_wall_s": sum(config.get("wall_s_last_session", 0.0) for config in configs),
                         "points": (learning_curve(task_id, algo, found, VALIDATION_SEEDS[:8], raw)
                                    if profile.curves else [])}
     log(f"[suite] {task_slug(task_id)}: agents played ({time.time() - start:.0f} s)")
     return {"agents": agents, "oracle": oracle, "oracle_choice": [family[i].name for i in choice],
-            "tuned": {"tuned_open_loop": family[best_open].name, "thermostat": family[best_feedback].name,
+            "tuned": {"tuned_open_loop": family[best_open].name, "thermostat": family[best_thermostat].name,
+                      "proportional": family[best_proportional].name, "identify_then_idle": family[best_gate].name,
                       "estimators_input": family[best_open].name},
             "designs": {"optimal_design_prior": list(fisher.schedule.coefficients),
                         "direct_design_knots": list(direct.schedule.knots)},
@@ -464,8 +520,9 @@ def summarize_task(task_id: str, evaluated: dict, profile: Profile, accepted: bo
         "description": spec["description"], "difficulty": spec["difficulty"], "in_suite": accepted,
         "floor": {"value": iqm(oracle), "kind": "oracle",
                   "ci": list(stratified_bootstrap_ci(oracle, n_boot=profile.bootstrap)),
-                  "how": "per draw, the best design of the family (open loop, estimate thermostats, thermostats "
-                         "on the true temperature) chosen on a noise replicate of the draw, scored on the draw",
+                  "how": "per draw, the best design of the family (open loop, the feedback rules, and their "
+                         "versions that read the true temperature and error) chosen on a noise replicate of the "
+                         "draw, scored on the draw",
                   "draws_where_agent_beats_oracle": beats},
         "reference": reference,
         "headroom": {"value": headroom, "ci": headroom_ci, "target": HEADROOM_TARGET,
@@ -480,7 +537,7 @@ def summarize_task(task_id: str, evaluated: dict, profile: Profile, accepted: bo
 # ---------------------------------------------------------------------------- report
 
 AGENT_ORDER = ("ramp", "tuned_open_loop", "optimal_design_prior", "direct_design", "gradient", "multiple_model",
-               "thermostat", "ppo", "sac")
+               "thermostat", "proportional", "identify_then_idle", "ppo", "sac")
 
 
 def solved_tier(results: pathlib.Path = RESULTS) -> list:
@@ -519,15 +576,17 @@ def markdown(data: dict) -> str:
              f"{data['rl_budget']}; wall time {data['wall_s'] / 60:.1f} min. Metric: mean |a_estimate - a_true| "
              "over the 10 s episode, A/m (width(Theta) per step after an overheat), IQM [95 % stratified-bootstrap "
              "CI]; lower is better.", "",
-             "| task (difficulty) | floor: oracle | reference (best without feedback) | headroom [CI] | in suite |",
-             "|---|---|---|---|---|"]
+             "| task (difficulty) | floor: oracle | reference (best without feedback) | headroom [CI] | in suite "
+             "| steps/s single, n=1024 |",
+             "|---|---|---|---|---|---|"]
     for task_id, task in sorted(tasks.items(), key=lambda item: (not item[1]["in_suite"], item[1]["difficulty"])):
         floor, head = task["floor"], task["headroom"]
         lines.append(f"| `{task_id}` ({task['difficulty'] or 'rejected'}) | {floor['value']:.1f} "
                      f"[{floor['ci'][0]:.1f}, {floor['ci'][1]:.1f}] | {task['reference']} "
                      f"{task['agents'][task['reference']]['iqm']:.1f} | {100 * head['value']:.0f} % "
                      f"[{100 * head['ci'][0]:.0f}, {100 * head['ci'][1]:.0f}] | "
-                     f"{'yes' if task['in_suite'] else 'no (CI not above 25 %)'} |")
+                     f"{'yes' if task['in_suite'] else 'no (CI not above 25 %)'} | "
+                     f"{task['steps_per_s']['single']:,.0f}, {task['steps_per_s']['1024']:,.0f} |")
     lines += ["", "Leaderboard (suite tasks): metric IQM [CI]; normalized score (reference - agent)/(reference - "
               "floor) IQM [CI] (1 = the oracle, 0 = the best input without feedback).", "",
               "| agent (kind) | " + " | ".join(f"`{t.split('/')[-1]}`" for t in suite) + " |",
@@ -572,6 +631,7 @@ def figure(data: dict, path: pathlib.Path) -> None:
         colors = {"open_loop": "tab:blue", "estimator": "tab:purple", "feedback": "tab:orange", "rl": "tab:green"}
         ax.barh(names, values, xerr=errors, color=[colors[task["agents"][n]["kind"]] for n in names])
         ax.axvline(task["floor"]["value"], color="k", ls="--", label="oracle floor")
+        ax.set_xscale("log")
         ax.set_title(task_id.split("/")[-1] + ("" if task["in_suite"] else " (rejected)"), fontsize=10)
         ax.set_xlabel("mean |a error|, A/m (IQM, 95 % CI)")
         ax.invert_yaxis()
@@ -612,19 +672,24 @@ def run_suite(profile: Profile, task_ids, out: pathlib.Path, figure_path: pathli
               readme: pathlib.Path | None = None, log=print) -> dict:
     from hyst_gym.envs.suite import SUITE_V1
 
+    from hyst_gym.envs.benchmark import SUITE_TARGETS, run_suite_benchmark
+
     start = time.time()
     if profile.train:
         train_all([t for t in task_ids if t in SUITE_V1], profile, raw)
+    speeds = run_suite_benchmark(log, SPEED_BUDGET_S, task_ids)
     tasks = {}
     for task_id in task_ids:
         evaluated = evaluate_task(task_id, profile, raw, log)
         summary = summarize_task(task_id, evaluated, profile, accepted=False)
         summary["in_suite"] = bool(task_id in SUITE_V1 and summary["headroom"]["met"])
+        summary["steps_per_s"] = speeds[task_id]
         tasks[task_id] = summary
     data = {"suite": "v1", "profile": profile.name, "heldout_draws": profile.heldout,
             "rl_budget": ", ".join(f"{algo.upper()} {steps:,} env steps x {profile.rl_seeds} seeds"
                                    for algo, steps in profile.rl_steps.items()),
             "tasks": tasks, "rl_target": rl_target(tasks), "solved_tier": solved_tier(),
+            "speed_targets_steps_per_s": SUITE_TARGETS,
             "wall_s": time.time() - start}
     stem = "suite_v1" if profile.name == "full" else f"suite_v1_{profile.name}"
     out.mkdir(parents=True, exist_ok=True)

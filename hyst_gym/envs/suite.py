@@ -31,7 +31,8 @@ slew 5e4 A/m/s, Theta = [6500, 8100] A/m (a from 5 C to 62 C), thetahat(0) = 730
 (about 39 C), temperature limit 333.15 K (60 C), output noise 1e-4, hysteresis substeps of at most
 625 A/m (a full-slew step of 2500 A/m costs 4 substeps per model, against 10 at the default
 250 A/m; the midpoint rule's error grows with the square of the substep, and plant and bank
-share the discretization, so the estimator still identifies the simulated a). With 250 A/m the n = 1024 env missed the 200,000 steps/s target.
+share the discretization, so the estimator still identifies the simulated a). With 250 A/m the
+n = 1024 env missed the 200,000 steps/s target.
 """
 
 from __future__ import annotations
@@ -137,5 +138,5 @@ def make_vector_env(task: str, num_envs: int = 1, **overrides):
     return ExcitationVectorEnv(num_envs, **_task_overrides(task, overrides))
 
 
-__all__ = ["COMMON", "HOT_THERMAL", "REJECTED_V1", "SUITE_V1", "TASKS", "SUITE_VERSION", "WARM_THERMAL", "make_env", "make_vector_env",
-           "suite_tasks", "task_config"]
+__all__ = ["COMMON", "HOT_THERMAL", "REJECTED_V1", "SUITE_V1", "TASKS", "SUITE_VERSION", "WARM_THERMAL", "make_env",
+           "make_vector_env", "suite_tasks", "task_config"]

@@ -66,13 +66,31 @@ def test_thermostat_gates_on_the_estimate_and_the_oracle_on_the_truth():
     oracle = DesignBank([Design("oracle", sine, margin=5.0, truth=True)], config, index)
     with pytest.raises(ValueError, match="observe"):
         oracle.predict(observations, episode_start=np.ones(2, bool))
-    oracle.observe({"temperature": np.array([300.0, config.temperature_limit])})
+    oracle.observe({"temperature": np.array([300.0, config.temperature_limit]), "a_estimate": np.zeros(2),
+                    "a_true": np.zeros(2)})
     actions = oracle.predict(observations, episode_start=np.ones(2, bool))[0]
     assert actions[0, 0] == pytest.approx(config.max_field_change / config.field_limit) and actions[1, 0] == 0.0
 
 
+def test_the_identification_gate_idles_once_a_is_identified():
+    config = task_config("hyst_gym/HotCoil-v1")
+    ramp = Ramp(peak=1e5, duration=1e-3)
+    index = suite_v1.estimate_index(config)
+    truth = DesignBank([Design("g", ramp, margin=2.0, truth=True, gate=25.0, tail=0.25)], config, index)
+    truth.observe({"temperature": np.full(2, 300.0), "a_estimate": np.array([7000.0, 7000.0]),
+                   "a_true": np.array([7100.0, 7010.0])})
+    step = config.max_field_change / config.field_limit
+    observations = np.zeros((2, 7), dtype=np.float32)
+    actions = truth.predict(observations, episode_start=np.ones(2, bool))[0][:, 0]
+    assert actions == pytest.approx([step, 0.25 * step])  # 100 A/m off: excite; 10 A/m: idle
+    observed = DesignBank([Design("g", ramp, margin=2.0, gate=0.1, tail=0.25)], config, index)
+    observations[0, observed.tuning_index] = -0.5  # the estimator still adapts
+    actions = observed.predict(observations, episode_start=np.ones(2, bool))[0][:, 0]
+    assert actions == pytest.approx([step, 0.25 * step])
+
+
 def test_a_tiny_suite_run_has_the_shape_and_the_physics(tmp_path):
-    profile = suite_v1.Profile("tiny", 6, 3, 6, 6, 1, {"ppo": 1, "sac": 1}, 100, False, False)
+    profile = suite_v1.Profile("tiny", 4, 2, 6, 6, 1, {"ppo": 1, "sac": 1}, 100, False, False)
     task_id = "hyst_gym/HotCoil-v1"
     data = suite_v1.run_suite(profile, [task_id], tmp_path, tmp_path / "suite.png", raw=tmp_path / "raw",
                               log=lambda *_: None)
@@ -83,8 +101,8 @@ def test_a_tiny_suite_run_has_the_shape_and_the_physics(tmp_path):
     assert task["floor"]["kind"] == "oracle" and np.isfinite(task["floor"]["value"])
     kinds = {name: entry["kind"] for name, entry in task["agents"].items()}
     assert set(kinds.values()) == {"open_loop", "feedback", "estimator"}
-    assert {"ramp", "tuned_open_loop", "optimal_design_prior", "direct_design", "thermostat", "gradient",
-            "multiple_model"} <= set(kinds)
+    assert {"ramp", "tuned_open_loop", "optimal_design_prior", "direct_design", "thermostat", "proportional",
+            "identify_then_idle", "gradient", "multiple_model"} <= set(kinds)
     for entry in task["agents"].values():
         low, high = entry["ci"]
         assert low <= entry["iqm"] <= high
@@ -111,3 +129,15 @@ def test_bad_benchmark_input_is_one_line_and_status_2():
                                 text=True, cwd=ROOT, timeout=120)
         lines = [line for line in result.stderr.splitlines() if line.strip()]
         assert result.returncode == 2 and len(lines) == 1 and expected in lines[0], result.stderr
+
+
+def test_the_proportional_rule_scales_the_input_with_the_budget_it_reads():
+    config = task_config("hyst_gym/HotCoil-v1")
+    ramp = Ramp(peak=1e5, duration=1e-3)  # full field at once (slew-limited to one step)
+    rule = DesignBank([Design("p", ramp, margin=5.0, truth=True, span=20.0)], config, suite_v1.estimate_index(config))
+    limit = config.temperature_limit
+    rule.observe({"temperature": np.array([limit - 5.0 - 40.0, limit - 5.0 - 10.0, limit - 5.0, limit]),
+                  "a_estimate": np.zeros(4), "a_true": np.zeros(4)})
+    actions = rule.predict(np.zeros((4, 7), dtype=np.float32), episode_start=np.ones(4, bool))[0][:, 0]
+    step = config.max_field_change / config.field_limit
+    assert actions == pytest.approx([step, 0.5 * step, 0.0, 0.0])
