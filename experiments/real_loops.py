@@ -20,6 +20,11 @@ temperature left out: a real record whose concealed effect (warming) is known.
 
 The variant (anhysteretic curve) is chosen on a held-out segment of the fitted loop, never
 on the fitted samples or on the other amplitudes.
+
+Fitting: all starts of a variant (a grid that puts the low-field slope into c and k or chi_r, the
+best points of a Sobol design and the loop-informed starts, and for the extension the base fit)
+are fitted at once by :func:`batched_least_squares`, each iteration one bank of models in one
+compiled call; the best is polished by the diagnose tool's local fit, which gives the uncertainties.
 """
 
 from __future__ import annotations

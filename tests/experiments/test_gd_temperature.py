@@ -124,3 +124,44 @@ def test_cli_runs_on_a_small_file_and_writes_rows(synthetic, tmp_path):
     predicted = [r for r in rows if r["role"] == "predicted"]
     assert {r["temperature_C"] for r in predicted} == {-15.0}
     assert all(set(r) >= {"temperature_C", "amplitude", "peak_field", "nrmse", "role"} for r in rows)
+
+
+def test_start_state_is_not_one_noisy_sample():
+    """The model starts from the line fitted to the foot of the initial curve, not from the first
+    sample: a spike there would act as a remanent state carried through a small loop."""
+    rng = np.random.default_rng(3)
+    n = 2000
+    H = 400 * np.sin(2 * np.pi * np.linspace(0, 1.25, n)) + rng.normal(0, 8, n)
+    M = 50.0 * H + 1500.0 + rng.normal(0, 300, n)  # remanent 1500 A/m, linear foot
+    B = MU0 * (H + M)
+    B[0] += 0.02  # a 20 mT spike on the first sample
+    rec = gd.clean_record(H, B, -10.0, "minor", stride=4)
+    assert rec.M0 == pytest.approx(1500.0 + 50.0 * rec.field[0], abs=150.0)
+
+
+def test_reversal_pinning_families_build_rayleigh_field_from_k():
+    family = gd.FAMILIES["smooth_pinning"]
+    z = family.to_z(family.x0)[None, :]
+    T = celsius_to_kelvin(np.array([-20.0, 0.0]))
+    table = gd.parameter_table(family, z, T)
+    np.testing.assert_array_equal(table["rayleigh_field"], table["k"])
+    assert not np.any(gd.parameter_table(gd.FAMILIES["smooth"], z, T)["rayleigh_field"])
+
+
+def test_held_out_temperature_of_the_shipped_data_is_predicted_within_the_targets():
+    """Leave -10 C out of the shipped gadolinium set, fit the chosen law (smooth laws with the
+    reversal-dependent pinning) on the seven others at all amplitudes and predict -10 C: major
+    within 2 %, mid and minor within 8 % (the issue's targets; coarse subsampling to keep it short)."""
+    records = gd.load_records(gd.DEFAULT_DATA, stride=16)
+    family = gd.FAMILIES["smooth_pinning"]
+    fit = gd.fit_family([r for r in records if r.temperature_C != -10.0], family, max_nfev=60)
+    rows = {r["amplitude"]: r["nrmse"] for r in gd.score([r for r in records if r.temperature_C == -10.0],
+                                                         family, fit, "predicted")}
+    assert rows["major"] < 0.02 and rows["mid"] < 0.08 and rows["minor"] < 0.08, rows
+
+
+def test_bad_input_is_one_line(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        gd.main(["--data", str(tmp_path / "missing.npz"), "--no-artifacts"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and len(err.strip().splitlines()) == 1 and "no such file" in err

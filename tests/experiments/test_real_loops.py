@@ -22,8 +22,10 @@ def test_scores_a_folder_of_loop_pairs(tmp_path):
     peaks = [loop["peak_field"] for loop in entry["loops"]]
     assert peaks == sorted(peaks, reverse=True) and len(peaks) == 4 and 75 < peaks[0] < 85
     # the fitted (largest) loop is matched closely; the smaller ones are predicted, not fitted
-    assert entry["fitted_loop_nrmse"] == entry["loops"][0]["nrmse"] < 0.02
+    assert entry["fitted_loop_nrmse"] == entry["loops"][0]["nrmse"] < 0.01  # the 1 % target
     assert all(0 < loop["nrmse"] < 0.2 for loop in entry["loops"])
+    # the 40 and 16 A/m loops are predicted within the 8 %; the 8 A/m loop is not (README)
+    assert all(loop["nrmse"] < 0.08 for loop in entry["loops"][1:3])
     assert entry["fit_seconds"] > 0 and {"a", "k", "alpha", "Ms", "c"} <= set(entry["params"])
     assert ("chi_r" in entry["params"]) == entry["variant"].endswith("small_loop")
     # the equally good fits bracket the reported prediction of every smaller loop

@@ -300,10 +300,16 @@ def _small_loop_reference(turning_points, p, chi_r, curve):
         irreversible = gap / denominator if gap * delta > 0 and denominator * delta > 0 else 0.0
         return (irreversible + c * man_slope) / (1 - alpha * c * man_slope) + chi_r * max(0.0, 1 - (m / Ms) ** 2)
 
+    return _integrate_legs(turning_points, lambda h, m, delta, h_rev: slope(h, m, delta), Ms)
+
+
+def _integrate_legs(turning_points, slope, Ms):
+    """M at the turning points: DOP853 along each monotone leg of ``slope(H, M, delta, H_rev)``, with
+    H_rev the leg's starting turning point, from M = 0."""
     m, out = 0.0, [0.0]
     for h0, h1 in zip(turning_points[:-1], turning_points[1:]):
         delta = 1.0 if h1 > h0 else -1.0
-        sol = scipy.integrate.solve_ivp(lambda h, y: [slope(h, y[0], delta)], (h0, h1), [m], method="DOP853",
+        sol = scipy.integrate.solve_ivp(lambda h, y: [slope(h, y[0], delta, h0)], (h0, h1), [m], method="DOP853",
                                         rtol=1e-10, atol=1e-6 * Ms)
         m = float(sol.y[0, -1])
         out.append(m)
@@ -351,3 +357,84 @@ def test_small_loop_batch_dispatch_and_errors():
     np.testing.assert_array_equal(both[:, 0], alone)  # a chi_r = 0 member is model (6) exactly
     with pytest.raises(ValueError, match="chi_r must be finite and >= 0"):
         HysteresisParams(chi_r=-1.0)
+
+
+# --------------------------------------------------------------- reversal-dependent pinning
+
+from hyst_gym.physics.hysteresis import reversal_weight, simulate_shared, simulate_shared_reversal  # noqa: E402
+
+
+def test_reversal_kernel_with_zero_rayleigh_field_is_model_6_and_the_small_loop_extension_bit_for_bit():
+    """rayleigh_field = 0 weighs the irreversible term by exactly 1: the numbers of (6) (and, with
+    chi_r, of the small-loop extension), and the default parameters never reach the new kernel."""
+    field = np.concatenate([np.linspace(0, 1.2e5, 300), np.linspace(1.2e5, -3e4, 200), np.linspace(-3e4, 2e4, 50)])
+    for curve in ("ising", "langevin"):
+        for chi_r in (0.0, 3.0):
+            batch = HysteresisBatch.stack([HysteresisParams(**p, anhysteretic=curve, chi_r=chi_r)
+                                           for p in SETS.values()])
+            zero = np.zeros(batch.size)
+            pinned = simulate_shared_reversal(field, zero, batch.a, batch.k, batch.alpha, batch.Ms, batch.c,
+                                              batch.chi_r, zero, batch.kind, 50.0)
+            np.testing.assert_array_equal(pinned, simulate_batch(field, batch, max_field_step=50.0))
+    assert not HysteresisBatch.from_params(HysteresisParams(**PAPER), 3).reversal_pinning
+    np.testing.assert_array_equal(simulate_magnetization(field, **PAPER),
+                                  simulate_shared(field, np.zeros(1), *(np.array([PAPER[n]]) for n in
+                                                  ("a", "k", "alpha", "Ms", "c")), 0, DEFAULT_MAX_FIELD_STEP)[:, 0])
+
+
+def _reversal_reference(turning_points, p, rayleigh_field, curve):
+    """M at the turning points from an adaptive DOP853 integration of REVERSAL_PINNING written
+    from its formula (the irreversible term of (6) times 1 - exp(-|H - H_rev|/rayleigh_field),
+    H_rev the last turning point), not from the kernels."""
+    a, k, alpha, Ms, c = p["a"], p["k"], p["alpha"], p["Ms"], p["c"]
+
+    def slope(h, m, delta, h_rev):
+        man, man_slope = anhysteretic_magnetization(h + alpha * m, a, Ms, curve)
+        man, man_slope = float(man), float(man_slope)
+        gap = man - m
+        denominator = k * delta - alpha / (1 - c) * gap
+        irreversible = gap / denominator if gap * delta > 0 and denominator * delta > 0 else 0.0
+        weight = 1 - math.exp(-abs(h - h_rev) / rayleigh_field)
+        return (weight * irreversible + c * man_slope) / (1 - alpha * c * man_slope)
+
+    return _integrate_legs(turning_points, slope, Ms)
+
+
+@pytest.mark.parametrize("curve", ["ising", "langevin"])
+def test_reversal_pinning_agrees_with_an_independent_adaptive_integration(curve):
+    p = SOFT
+    rayleigh_field = 2000.0
+    turning = TURNING_POINTS / 4
+    field = np.concatenate([np.linspace(h0, h1, 41)[:-1] for h0, h1 in zip(turning[:-1], turning[1:])] + [[turning[-1]]])
+    m = simulate_magnetization(field, **p, anhysteretic=curve, rayleigh_field=rayleigh_field, max_field_step=5.0)
+    np.testing.assert_allclose(m[::40], _reversal_reference(turning, p, rayleigh_field, curve), atol=2e-6 * p["Ms"])
+    plain = simulate_magnetization(field, **p, anhysteretic=curve, max_field_step=5.0)
+    assert np.max(np.abs(m - plain)) > 5e-3 * p["Ms"]  # far more than the tolerance above
+
+
+def test_reversal_pinning_grows_like_rayleigh_and_keeps_a_remanent_state_through_small_loops():
+    """The onset is Rayleigh's linear growth |dH|/rayleigh_field for small field changes and 1 far
+    from the reversal; so a loop much smaller than the pinning field k leaves a remanent state
+    where (6) erases a large part of it, while a major loop hardly changes."""
+    assert reversal_weight(10.0, 0.0, 1e4) == pytest.approx(1e-3, rel=1e-3)
+    assert reversal_weight(-5.0, 5.0, 1.0) == pytest.approx(1.0, abs=1e-4) and reversal_weight(3.0, 0.0, 0.0) == 1.0
+    p = dict(SOFT, alpha=0.0)
+    remanent = -0.2 * p["Ms"]
+    small = 300.0 * np.sin(np.linspace(0, 6 * np.pi, 601))  # three loops of k/5 from the remanent state
+    offset = {}
+    for rayleigh_field in (0.0, p["k"]):
+        m = simulate_magnetization(small, **p, rayleigh_field=rayleigh_field, magnetization0=remanent,
+                                   max_field_step=2.0)
+        offset[rayleigh_field] = (m[400:].max() + m[400:].min()) / 2
+    assert abs(offset[p["k"]] - remanent) < 0.5 * abs(offset[0.0] - remanent)
+    major = 2e4 * np.sin(np.linspace(0, 4 * np.pi, 2001))
+    loops = [simulate_magnetization(major, **p, rayleigh_field=r)[1000:] for r in (0.0, 0.1 * p["k"])]
+    assert np.max(np.abs(loops[1] - loops[0])) < 0.05 * np.ptp(loops[0])
+
+
+def test_reversal_pinning_errors():
+    with pytest.raises(ValueError, match="rayleigh_field must be finite and >= 0"):
+        HysteresisParams(rayleigh_field=-1.0)
+    with pytest.raises(ValueError, match="rayleigh_field must be finite and >= 0"):
+        HysteresisBatch(np.ones(2) * 7012, np.ones(2) * 400, np.zeros(2), np.ones(2) * 7.65e5, np.ones(2) * 0.18,
+                        rayleigh_field=np.array([1.0, np.nan]))
