@@ -19,8 +19,9 @@ from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
 from . import locate
-from .decide import (ACCEPT_DELTA_BIC, ACCEPT_IMPROVEMENT, Plausibility, check_plausibility, decide)
-from .fit import FitResult, Objective, _solve_linear_outputs, global_search, local_fit
+from .decide import (ACCEPT_DELTA_BIC, ACCEPT_IMPROVEMENT, EXPLAINED_RMSE, Plausibility, check_plausibility,
+                     decide)
+from .fit import BASE_FIT_TOLERANCE, FitResult, Objective, _solve_linear_outputs, global_search, local_fit
 from .identifiability import RATE_EFFECTS, channel_set, invisible_effects
 from .model import (EFFECT_PARAMETERS, MECHANICS_TOLERANCE, Model, Structure, applicable_effects,
                     base_parameters, extension_parameters, noise_level, slope_factor)
@@ -45,6 +46,8 @@ class Candidate:
     plausibility: Plausibility = dataclass_field(default_factory=Plausibility)
     #: normalized residual on the held-out block (channels concatenated), for the tie test
     heldout_residual: np.ndarray | None = dataclass_field(default=None, repr=False)
+    #: its mechanics ran into their prior (like the base model's, :func:`_prior_notes`)
+    mechanics_pinned: bool = False
 
     def to_json(self) -> dict:
         return {"effect": self.effect, "heldout_rmse": self.heldout_rmse, "bic": self.bic,
@@ -155,7 +158,7 @@ def calibrate(recording: Recording, structure: Structure, weights, fit_mask, max
                                extra_starts=informed)
     best = None
     for start in starts:
-        result = local_fit(model, weights, fit_mask, start, max_nfev=80)
+        result = local_fit(model, weights, fit_mask, start, max_nfev=80, tolerance=BASE_FIT_TOLERANCE)
         if best is None or result.sse < best.sse:
             best = result
         if progress is not None:
@@ -426,9 +429,15 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
         if candidate.accepted:
             candidate.plausibility = check_plausibility(candidate, weights)
     prior_notes = _prior_notes(base)
+    if prior_notes:
+        # a candidate that frees the mechanics is evidence too (decide.freeing_candidates)
+        for candidate in candidates:
+            candidate.mechanics_pinned = bool(_prior_notes(candidate.fit))
+            if not candidate.accepted and not candidate.mechanics_pinned and candidate.heldout_rmse <= EXPLAINED_RMSE:
+                candidate.plausibility = check_plausibility(candidate, weights)
     base_residual = _residual(base.model, base.values, weights, held_mask)[2]
     decision = decide(candidates, base_heldout, recording.channels, mechanics_pinned=bool(prior_notes),
-                      base_whiteness=locate.whiteness(base_residual))
+                      base_whiteness=locate.whiteness(base_residual), base_residual=base_residual)
     notes = decision.notes + prior_notes
     verdict = decision.verdict
     bar.update(1)
@@ -463,7 +472,7 @@ def _guard_base(base, candidates, weights, fit_mask, held_mask):
     accepted = sorted([c for c in candidates if c.accepted], key=lambda c: -c.improvement)
     if accepted and accepted[0].effect != "anhysteretic_shape":
         start = {n: v for n, v in accepted[0].fit.values.items() if n in base.values}
-        refit = local_fit(base.model, weights, fit_mask, start, max_nfev=60)
+        refit = local_fit(base.model, weights, fit_mask, start, max_nfev=60, tolerance=BASE_FIT_TOLERANCE)
         if refit.sse < base.sse:
             base = refit
             base_heldout, _ = _rmse(base.model, base.values, weights, held_mask)

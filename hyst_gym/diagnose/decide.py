@@ -17,7 +17,7 @@ An accepted candidate is then *plausible* only if
 Verdicts:
 
 * a single effect -- the plausible candidate with the lowest held-out RMSE, when every other
-  plausible candidate is *significantly* worse on the held-out block (:func:`tied_with`) and it
+  plausible candidate is significantly worse on the held-out block (:func:`tied_with`) and it
   halves the base model's held-out RMSE or brings it within ``EXPLAINED_RMSE`` noise units;
 * ``ambiguous`` -- several plausible candidates explain the held-out block equally well, i.e.
   their held-out mean squares differ by no more than the noise makes likely; the report lists
@@ -198,16 +198,25 @@ class Decision:
 
 
 def tied_with(candidate, best) -> bool:
-    """Whether ``candidate`` explains the held-out block as well as ``best``, within the noise.
+    """Whether ``candidate`` explains the held-out block as well as ``best``: a paired test on the
+    same samples (Diebold and Mariano, J. Bus. Econ. Stat. 13, 253, 1995) of d = r_candidate^2 -
+    r_best^2 per held-out sample, in noise units. They tie unless the mean of d exceeds ``TIE_Z``
+    standard errors. Which standard error depends on whether ``best`` explains the record:
 
-    A paired test on the same samples (Diebold and Mariano, J. Bus. Econ. Stat. 13, 253, 1995):
-    d = r_candidate^2 - r_best^2 per held-out sample, in noise units; the two tie unless the mean of
-    d exceeds ``TIE_Z`` standard errors. The standard error comes from the means of ``TIE_BLOCKS``
-    contiguous blocks, because residuals of a misfit are correlated in time. The noise cancels in d
-    where the two predictions agree, so two models that differ only where the record cannot tell
-    them apart tie, however small the noise, while a difference that runs through the whole block
-    separates them even when both are within a few per cent of the noise level."""
+    * ``best`` within ``EXPLAINED_RMSE``: its residual is (nearly) the measurement noise e, and
+      d = (s_c^2 - s_b^2) + 2 e (s_c - s_b) with s the two systematic errors, so the noise alone
+      moves the mean of d by 2 rms(r_candidate - r_best)/sqrt(n). This asks the question of the
+      issue, "do the two fit equally well within the noise?": two models whose predictions differ
+      only where the record cannot tell them apart tie, while one that misses a stretch of the
+      record by several noise units does not, however short the stretch;
+    * ``best`` still misses: both residuals are mostly misfit, which varies along the record, and
+      the standard error comes from the means of ``TIE_BLOCKS`` contiguous blocks (misfit is
+      correlated in time): one partial explanation is preferred to another only if it is better
+      throughout the held-out block, not on one stretch."""
     d = candidate.heldout_residual ** 2 - best.heldout_residual ** 2
+    if best.heldout_rmse <= EXPLAINED_RMSE:
+        spread = float(np.sqrt(np.mean((candidate.heldout_residual - best.heldout_residual) ** 2)))
+        return bool(np.mean(d) <= TIE_Z * 2.0 * spread / np.sqrt(d.size))
     means = np.array([block.mean() for block in np.array_split(d, TIE_BLOCKS) if block.size])
     if means.size < 2:
         return True
@@ -227,13 +236,29 @@ def naming_margin(candidate) -> float:
     return float(np.clip(max(by_share, by_level), 0.0, 1.0))
 
 
-def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False, base_whiteness=None) -> Decision:
+def freeing_candidates(candidates, base_residual) -> list:
+    """Candidates that explain the record as well as a base model whose mechanics are pinned at their
+    prior, with their own mechanics inside it: within ``EXPLAINED_RMSE`` on the held-out block, not
+    significantly worse than the base there (:func:`tied_with`), and plausible. Best first."""
+    class _Base:
+        heldout_residual = base_residual
+
+    freed = [c for c in candidates if not c.accepted and not c.mechanics_pinned and c.plausibility.plausible
+             and c.heldout_rmse <= EXPLAINED_RMSE and tied_with(c, _Base)]
+    return sorted(freed, key=lambda c: c.heldout_rmse)
+
+
+def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False, base_whiteness=None,
+           base_residual=None) -> Decision:
     """The verdict from fitted, accepted and plausibility-checked candidates (module docstring).
 
     ``mechanics_pinned``: the base model's mechanics ran into their prior; a base model that
     then explains the record is not trusted to mean ``none``. ``base_whiteness``: the Ljung-Box
     test of the base model's held-out residual (:func:`hyst_gym.diagnose.locate.whiteness`); a
-    residual within the noise level but not white is not ``none`` either."""
+    residual within the noise level but not white is not ``none`` either. ``base_residual``: the
+    base model's held-out residual; with ``mechanics_pinned``, a candidate that explains the record
+    as well with its mechanics inside their prior (:func:`freeing_candidates`) is named, at
+    confidence ``NONE_CONFIDENCE_CEILING``."""
     plausible = sorted([c for c in candidates if c.accepted and c.plausibility.plausible],
                        key=lambda c: c.heldout_rmse)
     rejected = [c for c in candidates if c.accepted and not c.plausibility.plausible]
@@ -260,6 +285,19 @@ def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False, b
         effects = [c.effect for c in tied]
         return Decision("ambiguous", confidence, chosen=best, tied=tied,
                         advice=separating_measurement(channels, effects), notes=notes)
+    if mechanics_pinned and base_residual is not None:
+        freed = freeing_candidates(candidates, base_residual)
+        if freed:
+            best = freed[0]
+            tied = [best] + [c for c in freed[1:] if tied_with(c, best)]
+            notes.append(f"the base model explains the record only with its mechanics pinned at their prior; "
+                         f"{', '.join(c.effect for c in tied)} explain{'s' if len(tied) == 1 else ''} it as well "
+                         f"({best.heldout_rmse:.2f} noise units held out) with the mechanics inside it")
+            # evidence from the prior, not from a lower held-out error: an even call at most
+            if len(tied) == 1:
+                return Decision(best.effect, NONE_CONFIDENCE_CEILING, chosen=best, tied=tied, notes=notes)
+            return Decision("ambiguous", NONE_CONFIDENCE_CEILING, chosen=best, tied=tied,
+                            advice=separating_measurement(channels, [c.effect for c in tied]), notes=notes)
     if base_heldout > UNEXPLAINED_RMSE:
         # margins to naming the best candidate (rejected ones included) and to 'none'
         confidence = min(1.0 - best_improvement / NAMING_IMPROVEMENT, 1.0 - UNEXPLAINED_RMSE / base_heldout)
