@@ -49,6 +49,18 @@ def _fmt(name, values, sigmas):
     return text + (f" {unit}" if unit else "")
 
 
+def record_temperature_rise(recording, values) -> float:
+    """K: the fitted thermal model's temperature rise from the first to the last sample,
+    dT/dt = heating*H^2 - T/tau_th integrated exactly over each sample interval (H held). Unlike a
+    steady-state rise, it stays meaningful when tau_th is much longer than the record."""
+    decay = np.exp(-np.diff(recording.time) / values["tau_th"])
+    drive = values["heating"] * values["tau_th"] * recording.field[:-1] ** 2
+    rise = 0.0
+    for factor, target in zip(decay, drive):
+        rise = target + (rise - target) * factor
+    return float(rise)
+
+
 def explain(report) -> str:
     """One paragraph in plain words: the effect, the evidence, the added model, the errors,
     then whatever the checks of :mod:`.decide` found (rejected candidates, pinned mechanics)."""
@@ -90,11 +102,8 @@ def _verdict_words(report) -> str:
                        or fit.model.parameters[n].free or n == "alpha")
     extra = ""
     if chosen.effect == "thermal_drift":
-        rec = fit.model.recording
-        mean_sq = float(np.mean(rec.field ** 2))
-        extra = (f" (steady-state temperature rise at the record's mean H^2: "
-                 f"{values['heating'] * mean_sq * values['tau_th']:.3g} K; a(T) slope a/T_amb = "
-                 f"{values['a'] / ROOM_TEMPERATURE:.4g} A/m per K)")
+        extra = (f" (temperature rise over the record: {record_temperature_rise(fit.model.recording, values):.3g} K; "
+                 f"a(T) slope a/T_amb = {values['a'] / ROOM_TEMPERATURE:.4g} A/m per K)")
     if chosen.effect == "quadratic_magnetostriction" and values.get("zeta_q"):
         extra = (f" (an M^2 law: zetahat/(2*zeta_q) = {values['zetahat'] / (2 * values['zeta_q']):.4g} A/m "
                  f"is the bias magnetization it implies)") if "zetahat" in values else ""

@@ -66,3 +66,20 @@ def test_fem_base_model_via_cli(tmp_path):
     assert {"Y", "ML", "cD", "zeta_fem", "M0"} <= set(data["baseline"]["params"])
     assert "rod_dynamics" not in {c["effect"] for c in data["candidates"]}   # the FEM rod has every mode
     assert data["verdict"] == "none" and data["baseline"]["heldout_rmse"] < 1.3
+
+
+def test_record_temperature_rise_matches_the_first_order_law():
+    """Constant H: T(t) = heating*tau*H^2*(1 - exp(-t/tau)); a tau far longer than the record gives
+    the linear rise heating*H^2*t, not the (meaningless) steady state."""
+    from types import SimpleNamespace
+
+    from hyst_gym.diagnose.report import record_temperature_rise
+
+    time = np.linspace(0.0, 2.0, 2001)
+    recording = SimpleNamespace(time=time, field=np.full_like(time, 3.0e4))
+    for tau in (0.5, 1e6):
+        values = {"heating": 1e-8, "tau_th": tau}
+        expected = 1e-8 * tau * 9e8 * (1.0 - np.exp(-2.0 / tau))
+        assert record_temperature_rise(recording, values) == pytest.approx(expected, rel=1e-6)
+    assert record_temperature_rise(recording, {"heating": 1e-8, "tau_th": 1e6}) == pytest.approx(1e-8 * 9e8 * 2.0,
+                                                                                                 rel=1e-5)
