@@ -242,6 +242,7 @@ def freeing_candidates(candidates, base_residual) -> list:
     significantly worse than the base there (:func:`tied_with`), and plausible. Best first."""
     class _Base:
         heldout_residual = base_residual
+        heldout_rmse = float(np.sqrt(np.mean(base_residual ** 2)))
 
     freed = [c for c in candidates if not c.accepted and not c.mechanics_pinned and c.plausibility.plausible
              and c.heldout_rmse <= EXPLAINED_RMSE and tied_with(c, _Base)]

@@ -134,6 +134,24 @@ def test_structured_residual_within_the_noise_is_not_none():
     assert 0.0 < decision.confidence <= 0.5
 
 
+def test_with_pinned_mechanics_a_candidate_that_frees_them_is_named():
+    """The base explains the record only with its mechanics at their prior bound: a plausible
+    candidate as good on the held-out block with its mechanics inside the prior is named at 0.5;
+    one that needs the bound too, or fits worse, is not."""
+    from hyst_gym.diagnose.decide import NONE_CONFIDENCE_CEILING
+
+    freeing = _Candidate("rod_dynamics", residual=_NOISE + _TINY, base=1.0)
+    pinned = _Candidate("sensor_lag", residual=_NOISE, base=1.0)
+    worse = _Candidate("eddy_current", residual=_NOISE + 0.3, base=1.0)
+    freeing.mechanics_pinned, pinned.mechanics_pinned, worse.mechanics_pinned = False, True, False
+    decision = decide([freeing, pinned, worse], 1.0, ("displacement",), mechanics_pinned=True, base_residual=_NOISE)
+    assert decision.verdict == "rod_dynamics" and decision.confidence == NONE_CONFIDENCE_CEILING
+    assert "mechanics inside it" in decision.notes[-1]
+    # without the base residual (or with free base mechanics) the old rules apply
+    assert decide([freeing, pinned, worse], 1.0, ("displacement",), mechanics_pinned=True).verdict == "unexplained"
+    assert decide([freeing, pinned, worse], 1.0, ("displacement",), base_residual=_NOISE).verdict == "none"
+
+
 def test_partial_explanation_is_not_a_name():
     # 30 % better but still 7 noise units off: neither halved nor within 2 noise units
     decision = decide([_Candidate("thermal_drift", 7.0)], 10.0, ("magnetization",))

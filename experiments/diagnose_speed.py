@@ -1,0 +1,76 @@
+"""Speed of the mismatch tool, one recording at a time (issue 12: at most 60 s per 20,000-sample
+recording on a 2-core machine).
+
+The concealed study (:mod:`experiments.diagnose_concealed`) times every recording, but with its
+worker processes sharing the cores, so its times mix the tool's cost with the load. This script
+takes the ``--slowest`` recordings of the study's raw rows, regenerates each from its generator
+and seed, and diagnoses it again in this process alone, with the 1-min load average before and
+after. Results go to ``experiments/results/diagnose/speed.{json,md}``.
+
+    .venv/bin/python -m experiments.diagnose_speed --slowest 6
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+from experiments.diagnose_concealed import RESULTS, RUNS, load_rows, make
+from hyst_gym.diagnose import diagnose
+
+
+def slowest_rows(rows, count):
+    return sorted(rows, key=lambda r: -float(r["seconds"]))[:count]
+
+
+def time_one(row, samples):
+    recording, _ = make(row["generator"], row["channels"], row["effect"], int(row["seed"]), samples)
+    load_before = os.getloadavg()[0]
+    started = time.perf_counter()
+    report = diagnose(recording, progress=False)
+    seconds = time.perf_counter() - started
+    return {"generator": row["generator"], "channels": row["channels"], "effect": row["effect"],
+            "seed": int(row["seed"]), "samples": recording.size, "seconds_alone": seconds,
+            "seconds_in_study": float(row["seconds"]), "study_load_average": float(row["load_average"]),
+            "load_average_before": load_before, "load_average_after": os.getloadavg()[0],
+            "verdict": report.verdict, "verdict_in_study": row["verdict"]}
+
+
+def markdown(results):
+    lines = ["| generator / channels | effect | seed | samples | s alone | 1-min load before / after | s in the study (load) "
+             "| verdict (study) |", "|---|---|---|---|---|---|---|---|"]
+    for r in results:
+        lines.append(f"| {r['generator']}/{r['channels']} | {r['effect']} | {r['seed']} | {r['samples']:,} | "
+                     f"{r['seconds_alone']:.1f} | {r['load_average_before']:.1f} / {r['load_average_after']:.1f} | "
+                     f"{r['seconds_in_study']:.1f} ({r['study_load_average']:.1f}) | {r['verdict']} ({r['verdict_in_study']}) |")
+    per_20k = max(r["seconds_alone"] * 20_000 / r["samples"] for r in results)
+    lines.append("")
+    lines.append(f"Largest time alone, scaled to 20,000 samples (time grows about linearly with the record): "
+                 f"{per_20k:.1f} s.")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--slowest", type=int, default=6, help="how many of the study's slowest recordings (default 6)")
+    parser.add_argument("--samples", type=int, default=4000,
+                        help="samples per own-generator recording, as in the study (default 4000)")
+    args = parser.parse_args(argv)
+    if args.slowest < 1:
+        parser.error("--slowest must be >= 1")
+    rows = load_rows(RUNS)
+    if not rows:
+        parser.error(f"no study rows in {RUNS}: run experiments.diagnose_concealed first")
+    results = [time_one(row, args.samples) for row in slowest_rows(rows, args.slowest)]
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / "speed.json").write_text(json.dumps(results, indent=2, default=float) + "\n")
+    text = markdown(results)
+    (RESULTS / "speed.md").write_text(text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
