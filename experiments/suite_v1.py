@@ -297,7 +297,7 @@ def model_dir(task_id: str, algo: str, seed: int, raw: pathlib.Path = RAW) -> pa
 
 def train_rl(task_id: str, algo: str, seed: int, steps: int, raw: pathlib.Path = RAW) -> pathlib.Path:
     """Train one seed (dense env reward, 8 envs, 8 stacked frames, baselines.train defaults),
-    unless a model of at least ``steps`` steps is already there."""
+    unless a model of at least ``steps`` steps is already there (then None)."""
     from baselines.environment import EpisodeSpec
     from baselines.train import train
 
@@ -305,7 +305,7 @@ def train_rl(task_id: str, algo: str, seed: int, steps: int, raw: pathlib.Path =
     config_path = out / "config.json"
     if (out / "model.zip").exists() and config_path.exists():
         if json.loads(config_path.read_text()).get("trained_steps", 0) >= steps:
-            return out
+            return None
     spec = EpisodeSpec(task_id, {}, 0.05)
     train(algo, spec, int(steps), int(seed), out, n_envs=8, checkpoint_every=int(steps) // CURVE_POINTS, progress=False,
           scenario=task_slug(task_id))
@@ -319,9 +319,9 @@ def train_all(task_ids, profile: Profile, raw: pathlib.Path = RAW):
         for task_id in task_ids:
             for algo in RL_ALGORITHMS:
                 start = time.time()
-                train_rl(task_id, algo, seed, profile.rl_steps[algo], raw)
-                print(f"[suite] trained {task_slug(task_id)} {algo} seed {seed} in {time.time() - start:.0f} s",
-                      flush=True)
+                if train_rl(task_id, algo, seed, profile.rl_steps[algo], raw) is not None:
+                    print(f"[suite] trained {task_slug(task_id)} {algo} seed {seed} in {time.time() - start:.0f} s",
+                          flush=True)
 
 
 def rl_agents(task_id: str, algo: str, seeds: int, raw: pathlib.Path = RAW):
