@@ -167,16 +167,19 @@ def global_search(model: Model, weights: dict, mask, names, n_points: int = 128,
     objective = Objective(model, weights, mask)
     magnetization = model.magnetization(candidates)
     scored = []
-    for i, v in enumerate(candidates):
-        m = magnetization[:, i]
-        if not np.all(np.isfinite(m)):
-            continue  # the design point leaves the model's range of validity
-        if output_solver is not None:
-            v = output_solver(v, m)
-        elif linear_outputs and "displacement" in model.channels:
-            v = _solve_linear_outputs(model, v, m, weights, mask, linear_outputs)
-        r = objective.residual_of(model.predict(v, m))
-        scored.append((float(np.nan_to_num(r @ r, nan=np.inf)), v))
+    # design points far from the data overflow (their mechanics or sums of squares): they score
+    # inf and drop out, so numpy's warnings about them would only be noise on the user's terminal
+    with np.errstate(over="ignore", invalid="ignore"):
+        for i, v in enumerate(candidates):
+            m = magnetization[:, i]
+            if not np.all(np.isfinite(m)):
+                continue  # the design point leaves the model's range of validity
+            if output_solver is not None:
+                v = output_solver(v, m)
+            elif linear_outputs and "displacement" in model.channels:
+                v = _solve_linear_outputs(model, v, m, weights, mask, linear_outputs)
+            r = objective.residual_of(model.predict(v, m))
+            scored.append((float(np.nan_to_num(r @ r, nan=np.inf)), v))
     scored.sort(key=lambda item: item[0])
     return [v for _, v in scored[:keep]]
 
