@@ -68,8 +68,9 @@ def _task(description: str, difficulty: int, **overrides) -> dict:
     return {"description": description, "difficulty": difficulty, "config": {**COMMON, **overrides}}
 
 
-#: id -> {"description", "difficulty" (1 = easiest), "config": EnvConfig overrides}: the tasks
-#: that entered the suite (measured headroom, ``experiments/suite_v1.py``)
+#: id -> {"description", "difficulty" (1 = easiest), "config": EnvConfig overrides}: the graded
+#: candidates the suite is built from, trained on and measured; a candidate enters the suite only
+#: if its measured headroom passes (``in_suite`` in ``experiments/results/suite_v1.json``)
 SUITE_V1 = {
     "hyst_gym/HotCoil-v1": _task(
         "Hot coil: a small, lightly cooled actuator (C_th 5 J/K, R_th 4 K/W) started at 5..45 C; a held "
@@ -87,8 +88,8 @@ SUITE_V1 = {
         "unknown rate), so the budget shrinks while the agent works", 4, thermal=HOT_THERMAL,
         ambient_drift_rate_range=(0.0, 1.0)),
 }
-#: candidates measured and rejected (headroom CI not above 25 %); registered, so the
-#: measurement can be repeated, but not part of the suite
+#: candidates measured and rejected early (headroom CI not above 25 %), no RL trained on them;
+#: registered, so the measurement can be repeated
 REJECTED_V1 = {
     "hyst_gym/WarmCoil-v1": _task(
         "Warm coil: C_th 10 J/K, R_th 2 K/W (6.6 K/s at 81 kA/m), started at 5..45 C", 0, thermal=WARM_THERMAL),
