@@ -585,10 +585,12 @@ def _cell(entry, normalized=False):
 def markdown(data: dict) -> str:
     tasks = data["tasks"]
     suite = [t for t in tasks if tasks[t]["in_suite"]]
+    note = "" if data["profile"] == "full" else (" The `in suite` column is measured on this profile's draws "
+                                                  "only; the suite's own decision is the full profile's.")
     lines = [f"Profile `{data['profile']}`: {data['heldout_draws']} held-out draws per agent, RL "
              f"{data['rl_budget']}; wall time {data['wall_s'] / 60:.1f} min. Metric: mean |a_estimate - a_true| "
              "over the 10 s episode, A/m (width(Theta) per step after an overheat), IQM [95 % stratified-bootstrap "
-             "CI]; lower is better.", "",
+             "CI]; lower is better." + note, "",
              "| task (difficulty) | floor: oracle | reference (best without feedback) | headroom [CI] | in suite "
              "| agents with an IQM below the oracle | steps/s single, n=1024 |",
              "|---|---|---|---|---|---|---|"]
