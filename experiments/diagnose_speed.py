@@ -5,7 +5,7 @@ The concealed study (:mod:`experiments.diagnose_concealed`) times every recordin
 worker processes sharing the cores, so its times mix the tool's cost with the load. This script
 takes the ``--slowest`` recordings of the study's raw rows, regenerates each from its generator
 and seed, and diagnoses it again in this process alone, with the 1-min load average before and
-after. Results go to ``experiments/results/diagnose/speed.{json,md}``. With ``--samples 20000`` the
+after. Results go to ``experiments/results/diagnose/speed_<samples>.{json,md}``. With ``--samples 20000`` the
 own generator's recordings are regenerated at the issue's record length (same effect and seed).
 
     .venv/bin/python -m experiments.diagnose_speed --slowest 6 --samples 20000
@@ -67,9 +67,10 @@ def main(argv=None):
         parser.error(f"no study rows in {RUNS}: run experiments.diagnose_concealed first")
     results = [time_one(row, args.samples) for row in slowest_rows(rows, args.slowest)]
     RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "speed.json").write_text(json.dumps(results, indent=2, default=float) + "\n")
+    stem = f"speed_{args.samples}"
+    (RESULTS / f"{stem}.json").write_text(json.dumps(results, indent=2, default=float) + "\n")
     text = markdown(results)
-    (RESULTS / "speed.md").write_text(text)
+    (RESULTS / f"{stem}.md").write_text(text)
     print(text)
     return 0
 
