@@ -76,9 +76,9 @@ TIE_Z = 2.0
 #: Contiguous blocks of the held-out residual whose means give that standard error.
 TIE_BLOCKS = 20
 #: A base model within the noise level whose held-out residual fails the Ljung-Box whiteness test at
-#: this p-value is not ``none``: in the concealed study white residuals of ``none`` recordings gave
-#: Q of 17-30 over 20 lags (p >= 0.07), effects the base model absorbs into its RMSE but not into the
-#: shape of its residual gave Q in the hundreds or thousands.
+#: this p-value is not ``none``: on five ``none`` recordings of the concealed study's two generators
+#: the white residuals gave Q of 17-30 over 20 lags (p >= 0.07); effects the base model absorbs into
+#: its RMSE but not into the shape of its residual gave Q in the hundreds or thousands.
 WHITENESS_P = 1e-6
 #: Independent time blocks for the consistency check.
 BLOCKS = 3
@@ -314,7 +314,8 @@ def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False, b
                      "out something that no candidate explains")
         # margin to 'none': how far p lies below the bar, in decades (6 decades = the full margin)
         decades = np.log10(WHITENESS_P / max(base_whiteness["p_value"], 1e-300))
-        return Decision("unexplained", NONE_CONFIDENCE_CEILING * float(np.clip(decades / 6.0, 0.0, 1.0)), notes=notes)
+        confidence = NONE_CONFIDENCE_CEILING * float(np.clip(decades / 6.0, 0.0, 1.0))
+        return Decision("unexplained", confidence, notes=notes)
     if mechanics_pinned:
         # the data alone would say 'none'; the stated mechanics say otherwise: an even call
         return Decision("unexplained", 0.5, notes=notes)
