@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .agents import Agent
-from .schedules import ExcitationLimits, Schedule, apply_limits
+from .schedules import ExcitationLimits, Ramp, Schedule, apply_limits
 
 
 @dataclass(frozen=True)
@@ -70,8 +70,7 @@ class RampDither(Schedule):
     def field(self, time):
         time = np.asarray(time, dtype=np.float64)
         after = np.maximum(time - self.duration, 0.0)
-        return self.peak * np.minimum(time / self.duration, 1.0) + self.dither * np.sin(
-            2 * np.pi * self.frequency * after)
+        return Ramp(self.peak, self.duration).field(time) + self.dither * np.sin(2 * np.pi * self.frequency * after)
 
 
 class DesignBank(Agent):

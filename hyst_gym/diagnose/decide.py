@@ -55,6 +55,7 @@ measured in ``experiments/diagnose_concealed.py`` (its reliability table).
 from __future__ import annotations
 
 from dataclasses import dataclass, field as dataclass_field, replace
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -240,12 +241,10 @@ def freeing_candidates(candidates, base_residual) -> list:
     """Candidates that explain the record as well as a base model whose mechanics are pinned at their
     prior, with their own mechanics inside it: within ``EXPLAINED_RMSE`` on the held-out block, not
     significantly worse than the base there (:func:`tied_with`), and plausible. Best first."""
-    class _Base:
-        heldout_residual = base_residual
-        heldout_rmse = float(np.sqrt(np.mean(base_residual ** 2)))
-
+    base = SimpleNamespace(heldout_residual=base_residual,
+                           heldout_rmse=float(np.sqrt(np.mean(base_residual ** 2))))
     freed = [c for c in candidates if not c.accepted and not c.mechanics_pinned and c.plausibility.plausible
-             and c.heldout_rmse <= EXPLAINED_RMSE and tied_with(c, _Base)]
+             and c.heldout_rmse <= EXPLAINED_RMSE and tied_with(c, base)]
     return sorted(freed, key=lambda c: c.heldout_rmse)
 
 

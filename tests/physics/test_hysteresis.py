@@ -287,20 +287,26 @@ def test_small_loop_kernel_with_zero_chi_r_is_model_6_bit_for_bit():
         np.testing.assert_array_equal(extended, plain)
 
 
+def _reference_terms(h, m, delta, p, curve):
+    """(irreversible, Man') of (6) written from its formula, not from the kernels (A/m per A/m)."""
+    a, k, alpha, Ms, c = p["a"], p["k"], p["alpha"], p["Ms"], p["c"]
+    man, man_slope = anhysteretic_magnetization(h + alpha * m, a, Ms, curve)
+    gap = float(man) - m
+    denominator = k * delta - alpha / (1 - c) * gap
+    irreversible = gap / denominator if gap * delta > 0 and denominator * delta > 0 else 0.0
+    return irreversible, float(man_slope)
+
+
 def _small_loop_reference(turning_points, p, chi_r, curve):
     """M at the turning points from an adaptive DOP853 integration of the extension's law,
     written here from its formula (eq. (6) slope + chi_r*(1 - (M/Ms)^2)), not from the kernels."""
-    a, k, alpha, Ms, c = p["a"], p["k"], p["alpha"], p["Ms"], p["c"]
+    alpha, Ms, c = p["alpha"], p["Ms"], p["c"]
 
-    def slope(h, m, delta):
-        man, man_slope = anhysteretic_magnetization(h + alpha * m, a, Ms, curve)
-        man, man_slope = float(man), float(man_slope)
-        gap = man - m
-        denominator = k * delta - alpha / (1 - c) * gap
-        irreversible = gap / denominator if gap * delta > 0 and denominator * delta > 0 else 0.0
+    def slope(h, m, delta, h_rev):
+        irreversible, man_slope = _reference_terms(h, m, delta, p, curve)
         return (irreversible + c * man_slope) / (1 - alpha * c * man_slope) + chi_r * max(0.0, 1 - (m / Ms) ** 2)
 
-    return _integrate_legs(turning_points, lambda h, m, delta, h_rev: slope(h, m, delta), Ms)
+    return _integrate_legs(turning_points, slope, Ms)
 
 
 def _integrate_legs(turning_points, slope, Ms):
@@ -386,14 +392,10 @@ def _reversal_reference(turning_points, p, rayleigh_field, curve):
     """M at the turning points from an adaptive DOP853 integration of REVERSAL_PINNING written
     from its formula (the irreversible term of (6) times 1 - exp(-|H - H_rev|/rayleigh_field),
     H_rev the last turning point), not from the kernels."""
-    a, k, alpha, Ms, c = p["a"], p["k"], p["alpha"], p["Ms"], p["c"]
+    alpha, Ms, c = p["alpha"], p["Ms"], p["c"]
 
     def slope(h, m, delta, h_rev):
-        man, man_slope = anhysteretic_magnetization(h + alpha * m, a, Ms, curve)
-        man, man_slope = float(man), float(man_slope)
-        gap = man - m
-        denominator = k * delta - alpha / (1 - c) * gap
-        irreversible = gap / denominator if gap * delta > 0 and denominator * delta > 0 else 0.0
+        irreversible, man_slope = _reference_terms(h, m, delta, p, curve)
         weight = 1 - math.exp(-abs(h - h_rev) / rayleigh_field)
         return (weight * irreversible + c * man_slope) / (1 - alpha * c * man_slope)
 
