@@ -229,6 +229,9 @@ class BatchSimulator:
         self.action_size = action_size(mode)
         self.record = record
         self.history: list[list[dict]] = [[] for _ in range(self.n)]
+        #: None (uniform initial temperature) or a vectorized quantile function [0, 1] -> [0, 1]
+        #: that shapes the uniform draw (a task's prior over the initial temperature)
+        self.temperature_quantile = None
         self._make_estimator()
         self._allocate_plant()
         self._allocate_noise()
@@ -401,7 +404,8 @@ class BatchSimulator:
             if rng is None:
                 raise RuntimeError("reset: sub-env has no generator; call set_generator first")
             draws = rng.random(2)
-            self.temperature[row] = t_lo + (t_hi - t_lo) * draws[0]
+            fraction = draws[0] if self.temperature_quantile is None else float(self.temperature_quantile(draws[0]))
+            self.temperature[row] = t_lo + (t_hi - t_lo) * fraction
             self.drift_rate[row] = d_lo + (d_hi - d_lo) * draws[1]
             if config.schedule == "prbs" and self.mode == ESTIMATION:
                 self.prbs_bits[row] = np.where(rng.random(self.prbs_bits.shape[1]) < 0.5, -1.0, 1.0)
