@@ -28,6 +28,11 @@ SUITE_IDS = ("hyst_gym/HotCoil-v1", "hyst_gym/HotCoilNoisy-v1", "hyst_gym/HotCoi
              "hyst_gym/CoolantFailure-v1", "hyst_gym/WarmCoil-v1", "hyst_gym/HotCoilLumped-v1")
 ENV_IDS.update({env_id: ("hyst_gym.envs.suite:make_env", "hyst_gym.envs.suite:make_vector_env")
                 for env_id in SUITE_IDS})
+#: suite v2's task ids (:mod:`hyst_gym.envs.suite_v2`: envs of their own, made with ``task=id``)
+SUITE_V2_IDS = ("hyst_gym/HotCalibrate-v0", "hyst_gym/HotCalibrateNoisy-v0", "hyst_gym/DisplacementOnly-v0",
+                "hyst_gym/DriftJump-v0")
+ENV_IDS.update({env_id: ("hyst_gym.envs.suite_v2:make_env", "hyst_gym.envs.suite_v2:make_vector_env")
+                for env_id in SUITE_V2_IDS})
 
 
 def register_envs() -> None:
@@ -35,11 +40,11 @@ def register_envs() -> None:
     for env_id, (entry_point, vector_entry_point) in ENV_IDS.items():
         if env_id in gymnasium.registry:
             continue
-        kwargs = {"task": env_id} if env_id in SUITE_IDS else {}
+        kwargs = {"task": env_id} if env_id in SUITE_IDS + SUITE_V2_IDS else {}
         gymnasium.register(id=env_id, entry_point=entry_point, vector_entry_point=vector_entry_point,
                            kwargs=kwargs)
 
 
 register_envs()
 
-__all__ = ["ENV_IDS", "SUITE_IDS", "register_envs"]
+__all__ = ["ENV_IDS", "SUITE_IDS", "SUITE_V2_IDS", "register_envs"]

@@ -1,0 +1,361 @@
+"""Benchmark suite v2 (issue 23): task envs with their own stories, behind versioned ids.
+
+Two kinds of task, both on the compiled simulator of :mod:`hyst_gym.envs.core`:
+
+* **calibration** tasks (``Identification`` mode: the agent drives the coil *and* reports its
+  estimate of a every step), whose floor is a Van Trees bound
+  (:mod:`hyst_gym.estimation.information_bound`): :class:`HotCalibrateEnv` and its noisy and
+  displacement-only variants;
+* **drift-jump** task (``Excitation`` mode, the built-in min-max estimator identifies a): a
+  jumps at an unknown time, :class:`DriftJumpEnv`; its floor is an oracle.
+
+Each id's class docstring is its documentation page (Gymnasium's sections). The presets live in
+:data:`TASKS_V2`; ``gymnasium.make(id)`` and ``gymnasium.make_vec(id, num_envs=n,
+vectorization_mode="vector_entry_point")`` build them through :func:`make_env` and
+:func:`make_vector_env`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..estimation.information_bound import raised_cosine_quantile
+from .config import make_config
+from .single import ExcitationEnv, IdentificationEnv
+from .suite import COMMON, HOT_THERMAL
+from .vector import ExcitationVectorEnv, IdentificationVectorEnv
+
+#: calibration presets: the hot coil of v1, no ambient drift (the heating is then a known function
+#: of the input), the starting temperature drawn from a raised-cosine prior over 5..45 C
+CALIBRATE = {**COMMON, "thermal": HOT_THERMAL, "ambient_drift_rate_range": (0.0, 0.0)}
+#: the drift-jump preset: v1's hot coil with its usual ambient drift
+JUMP = {**COMMON, "thermal": HOT_THERMAL}
+#: jump of the coil's surroundings (K): a magnitude in JUMP_MAGNITUDE, at a step in JUMP_WINDOW
+JUMP_MAGNITUDE = (5.0, 12.0)
+JUMP_WINDOW = (40, 160)   # steps: 2..8 s at dt = 0.05 s
+#: the temperatures a jump may lead to (K): the sign is flipped when the drawn one leaves them
+JUMP_RANGE = (278.15, 323.15)
+
+
+def _task(kind, description, difficulty, config, sensors=None):
+    return {"kind": kind, "description": description, "difficulty": difficulty, "config": config,
+            "sensors": sensors}
+
+
+#: id -> {"kind" ("calibrate" or "jump"), "description", "difficulty", "config" (EnvConfig overrides),
+#: "sensors" (observation entries hidden from the agent, or None)}
+TASKS_V2 = {
+    "hyst_gym/HotCalibrate-v0": _task(
+        "calibrate", "Calibrate a hot coil: report a every step while exciting; the coil overheats if "
+        "excited at full field for about a second from a warm start", 1, CALIBRATE),
+    "hyst_gym/HotCalibrateNoisy-v0": _task(
+        "calibrate", "The hot-coil calibration with a 10x noisier sensor (1e-3 of full scale)", 2,
+        {**CALIBRATE, "output_noise": 1.0e-3}),
+    "hyst_gym/DisplacementOnly-v0": _task(
+        "calibrate", "The hot-coil calibration on the lumped transducer (13) with only the tip displacement "
+                     "sensed (no velocity), 10x sensor noise", 3,
+        {**CALIBRATE, "transducer": "lumped", "output_noise": 1.0e-3}, sensors=("velocity",)),
+    "hyst_gym/DriftJump-v0": _task(
+        "jump", "Mount change: at an unknown time in 2..8 s the coil and its surroundings step by 5..12 K, so a "
+                "jumps by 120..290 A/m; the min-max estimator must be re-excited without overheating", 4, JUMP),
+}
+
+
+def _spec(task: str) -> dict:
+    if task not in TASKS_V2:
+        raise ValueError(f"unknown suite v2 task {task!r}; expected one of {sorted(TASKS_V2)}")
+    return TASKS_V2[task]
+
+
+def task_config_v2(task: str, **overrides):
+    """The :class:`~hyst_gym.envs.config.EnvConfig` of a v2 task (with ``overrides``)."""
+    return make_config(**{**_spec(task)["config"], **overrides})
+
+
+# ---------------------------------------------------------------------------- calibration
+
+
+class _Calibrate:
+    """Shared by the single and the vector calibration env: the raised-cosine prior on the start
+    temperature and the sensor selection (observation columns kept)."""
+
+    def _setup_calibrate(self, hidden):
+        self.sim.temperature_quantile = raised_cosine_quantile
+        names = self.sim.obs_names
+        self._keep = np.array([i for i, name in enumerate(names) if name not in (hidden or ())])
+        self.kept_names = [names[i] for i in self._keep]
+        low, high = self.sim.obs_low[self._keep], self.sim.obs_high[self._keep]
+        return low, high
+
+
+class HotCalibrateEnv(_Calibrate, IdentificationEnv):
+    """``hyst_gym/HotCalibrate-v0`` (also ``HotCalibrateNoisy-v0``, ``DisplacementOnly-v0``).
+
+    ## Description
+    A milling actuator's small, lightly cooled coil (C_th 5 J/K, R_th 4 K/W) must be calibrated
+    before a job: the agent drives the coil field and reports its estimate of the anhysteretic
+    parameter a every step. a follows the coil temperature (eq. (4), about 24 A/m per K); the start
+    temperature is unknown (a raised-cosine prior over 5..45 C), the ambient equals it and does not
+    drift, and Joule heating ``R*(H/n)**2`` heats the coil by about 13 K/s at 81 kA/m, so a warm
+    coil affords about a second of full excitation. The floor is a Van Trees bound on the RMS error
+    of any estimate under any admissible input (``experiments/suite_v2.py``).
+
+    ## Action Space
+    ``Box(-1, 1, (2,))``: (field command / field_limit (1e5 A/m); the applied field moves towards it by
+    at most 2500 A/m per step), (estimate of a mapped onto Theta = [6500, 8100] A/m).
+
+    ## Observation Space
+    ``Box(float32)``, normalized, clipped to the bounds:
+
+    | index | name | min | max | meaning (unit) |
+    |---|---|---|---|---|
+    | 0 | output (or displacement) | -2 | 2 | y / y(Ms) (first-order plant) or x / x(Ms) (lumped) |
+    | 1 | velocity (HotCalibrate on the lumped transducer only; hidden in DisplacementOnly) | -2 | 2 | v / (x(Ms) w1) |
+    | next | field | -1 | 1 | H / 1e5 A/m |
+    | next | elapsed | 0 | 1 | step / 200 |
+    | next | previous_estimate | -1 | 1 | the last reported estimate mapped from Theta |
+
+    Measurement noise: ``output_noise`` (1e-4; 1e-3 in the noisy and displacement-only tasks) times each
+    output's scale, Gaussian, per step.
+
+    ## Rewards
+    ``-|a_estimate - a_true| / width(Theta)`` per step, minus the soft temperature penalty within 5 K of the
+    limit; on an overheat, minus the remaining steps. The suite's metric is the RMS of
+    ``a_estimate - a_true`` (A/m) over the 200 steps, counting width(Theta) per step after an overheat.
+
+    ## Starting State
+    Field 0, M = 0, coil at ``T0 = 278.15 + 40*Q(u)`` K (Q the raised-cosine quantile, u uniform from the
+    env's seeded generator), a = 7012*T0/293.15 A/m.
+
+    ## Episode End
+    ``terminated``: the coil passes 333.15 K (60 C). ``truncated``: 200 steps (10 s at dt = 0.05 s).
+
+    ## Arguments
+    ``gymnasium.make(id, **overrides)``: any :class:`~hyst_gym.envs.config.EnvConfig` field on top of the
+    preset. Reset options as :class:`~hyst_gym.envs.single.HystEnv` (``initial_temperature`` bypasses the
+    prior).
+
+    ## Version History
+    * v0: first version (suite v2, issue 23).
+    """
+
+    def __init__(self, task: str = "hyst_gym/HotCalibrate-v0", render_mode=None, **overrides):
+        spec = _spec(task)
+        if spec["kind"] != "calibrate":
+            raise ValueError(f"{task!r} is not a calibration task")
+        super().__init__(make_config(**{**spec["config"], **overrides}), render_mode=render_mode)
+        self.task = task
+        low, high = self._setup_calibrate(spec["sensors"])
+        from gymnasium import spaces
+
+        self.observation_space = spaces.Box(low, high, dtype=np.float32)
+
+    @property
+    def observation_names(self) -> list[str]:
+        return list(self.kept_names)
+
+    def reset(self, *, seed=None, options=None):
+        observation, info = super().reset(seed=seed, options=options)
+        return observation[self._keep], info
+
+    def step(self, action):
+        observation, reward, terminated, truncated, info = super().step(action)
+        return observation[self._keep], reward, terminated, truncated, info
+
+
+class HotCalibrateVectorEnv(_Calibrate, IdentificationVectorEnv):
+    """Native vector env of the calibration tasks (see :class:`HotCalibrateEnv`)."""
+
+    def __init__(self, num_envs: int = 1, task: str = "hyst_gym/HotCalibrate-v0", **overrides):
+        spec = _spec(task)
+        if spec["kind"] != "calibrate":
+            raise ValueError(f"{task!r} is not a calibration task")
+        super().__init__(num_envs, make_config(**{**spec["config"], **overrides.pop("config_overrides", {})}),
+                         **overrides)
+        self.task = task
+        low, high = self._setup_calibrate(spec["sensors"])
+        from gymnasium import spaces
+        from gymnasium.vector.utils import batch_space
+
+        self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+
+    @property
+    def observation_names(self) -> list[str]:
+        return list(self.kept_names)
+
+    def reset(self, *, seed=None, options=None):
+        observation, info = super().reset(seed=seed, options=options)
+        return observation[:, self._keep], info
+
+    def step(self, actions):
+        observation, reward, terminated, truncated, info = super().step(actions)
+        return observation[:, self._keep], reward, terminated, truncated, info
+
+
+# ---------------------------------------------------------------------------- drift jump
+
+JUMP_OPTIONS = ("jump_step", "jump_change")
+
+
+class _Jump:
+    """Shared by the single and the vector drift-jump env: per sub-env a jump step and a change of
+    the coil and ambient temperature (K), drawn at reset from the sub-env's episode generator (after
+    the simulator's own draws) or given as reset options ``jump_step``, ``jump_change``."""
+
+    def _draw_jumps(self, rows, options):
+        sim = self.sim
+        n = sim.n
+        if not hasattr(self, "jump_step"):
+            self.jump_step = np.zeros(n, dtype=np.int64)
+            self.jump_change = np.zeros(n)
+        for row in rows:
+            draws = sim.episode_rngs[row].random(3)
+            step = JUMP_WINDOW[0] + int(draws[0] * (JUMP_WINDOW[1] - JUMP_WINDOW[0]))
+            change = (JUMP_MAGNITUDE[0] + (JUMP_MAGNITUDE[1] - JUMP_MAGNITUDE[0]) * draws[1]) * (
+                1.0 if draws[2] < 0.5 else -1.0)
+            if not JUMP_RANGE[0] <= sim.temperature[row] + change <= JUMP_RANGE[1]:
+                change = -change
+            self.jump_step[row], self.jump_change[row] = step, change
+        if "jump_step" in options:
+            self.jump_step[rows] = int(options["jump_step"])
+        if "jump_change" in options:
+            self.jump_change[rows] = float(options["jump_change"])
+
+    def _apply_jumps(self):
+        sim = self.sim
+        rows = np.flatnonzero(sim.steps == self.jump_step)
+        if rows.size:
+            change = self.jump_change[rows]
+            sim.temperature[rows] += change
+            sim.ambient0[rows] += change
+            sim.a_true[rows] = sim.config.a_of(sim.temperature[rows])
+
+
+def _split_options(options):
+    """(simulator options, jump options); a bad jump option is a ValueError naming it."""
+    options = dict(options or {})
+    jump = {key: options.pop(key) for key in JUMP_OPTIONS if key in options}
+    for key, value in jump.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or \
+                not np.isfinite(value):
+            raise ValueError(f"reset option {key} must be a finite number, got {value!r}")
+    if "jump_step" in jump and (jump["jump_step"] < 1 or int(jump["jump_step"]) != jump["jump_step"]):
+        raise ValueError(f"reset option jump_step must be an integer >= 1, got {jump['jump_step']!r}")
+    return (options or None), jump
+
+
+class DriftJumpEnv(_Jump, ExcitationEnv):
+    """``hyst_gym/DriftJump-v0``: a jumps at an unknown time; notice it and re-identify.
+
+    ## Description
+    The hot coil of suite v1 (C_th 5 J/K, R_th 4 K/W, start 5..45 C, ambient drift +-0.05 K/s, limit 60 C)
+    with a drift *event*: at an unknown step (2..8 s) the actuator's mount changes and the coil and its
+    surroundings step by 5..12 K (up or down; the sign is flipped when it would leave 5..50 C), so a
+    jumps by 120..290 A/m. The agent drives the field; the built-in min-max estimator identifies a. An
+    open-loop input must keep exciting (and heating) for the whole episode to catch the jump; feedback can
+    read the estimator's tuning error, idle while it is tuned and excite when it is not.
+
+    ## Action Space
+    ``Box(-1, 1, (1,))``: field command / field_limit (1e5 A/m); slew limit 2500 A/m per step.
+
+    ## Observation Space
+    As ``hyst_gym/Excitation-v0`` (all normalized):
+
+    | index | name | min | max | meaning (unit) |
+    |---|---|---|---|---|
+    | 0 | output | -2 | 2 | y / y(Ms) |
+    | 1 | field | -1 | 1 | H / 1e5 A/m |
+    | 2 | elapsed | 0 | 1 | step / 200 |
+    | 3 | a_estimate | -1 | 1 | min-max estimate mapped from Theta = [6500, 8100] A/m |
+    | 4 | tuning_error | -1 | 1 | sign*log10(1 + abs(y_eps)/eps)/6 |
+    | 5 | curvature_sign | -1 | 1 | sign of d2f/da2 at the estimate |
+    | 6 | minmax_gap | 0 | 1 | log1p(nu*)/log1p(2 Ms) |
+
+    ## Rewards
+    ``-|a_estimate - a_true| / width(Theta)`` per step, the soft temperature penalty, and minus the remaining
+    steps at an overheat. Suite metric: mean ``|a_estimate - a_true|`` (A/m) over the 200 steps, width(Theta)
+    per step after an overheat.
+
+    ## Starting State
+    Field 0, M = 0, thetahat(0) = 7300 A/m, coil and ambient at T0 uniform in 5..45 C; the jump step and
+    change are drawn from the env's seeded generator at reset.
+
+    ## Episode End
+    ``terminated``: the coil passes 333.15 K. ``truncated``: 200 steps (10 s).
+
+    ## Arguments
+    EnvConfig fields on top of the preset. Reset options: those of ``Excitation-v0`` and ``jump_step``
+    (int >= 1), ``jump_change`` (K).
+
+    ## Version History
+    * v0: first version (suite v2, issue 23).
+    """
+
+    def __init__(self, task: str = "hyst_gym/DriftJump-v0", render_mode=None, **overrides):
+        if _spec(task)["kind"] != "jump":
+            raise ValueError(f"{task!r} is not a drift-jump task")
+        super().__init__(make_config(**{**TASKS_V2[task]["config"], **overrides}), render_mode=render_mode)
+        self.task = task
+
+    def reset(self, *, seed=None, options=None):
+        options, jump = _split_options(options)
+        observation, info = super().reset(seed=seed, options=options)
+        self._draw_jumps(np.zeros(1, dtype=np.int64), jump)
+        return observation, info
+
+    def step(self, action):
+        self._apply_jumps()
+        return super().step(action)
+
+
+class DriftJumpVectorEnv(_Jump, ExcitationVectorEnv):
+    """Native vector env of ``hyst_gym/DriftJump-v0`` (see :class:`DriftJumpEnv`); sub-envs that are
+    reset automatically draw a new jump."""
+
+    def __init__(self, num_envs: int = 1, task: str = "hyst_gym/DriftJump-v0", **overrides):
+        if _spec(task)["kind"] != "jump":
+            raise ValueError(f"{task!r} is not a drift-jump task")
+        env_keys = {"max_episode_steps", "autoreset_mode", "render_mode"}
+        env_args = {key: value for key, value in overrides.items() if key in env_keys}
+        config = make_config(**{**TASKS_V2[task]["config"],
+                                **{k: v for k, v in overrides.items() if k not in env_keys}})
+        super().__init__(num_envs, config, **env_args)
+        self.task = task
+
+    def reset(self, *, seed=None, options=None):
+        options, jump = _split_options(options)
+        observation, info = super().reset(seed=seed, options=options)
+        self._draw_jumps(self._all, jump)
+        return observation, info
+
+    def step(self, actions):
+        self._apply_jumps()
+        done_before = self._autoreset.copy()
+        result = super().step(actions)
+        if done_before.any():
+            self._draw_jumps(np.flatnonzero(done_before), {})
+        return result
+
+
+# ---------------------------------------------------------------------------- entry points
+
+
+def make_env(task: str, **overrides):
+    """Gymnasium entry point of a v2 id."""
+    cls = HotCalibrateEnv if _spec(task)["kind"] == "calibrate" else DriftJumpEnv
+    return cls(task, **overrides)
+
+
+def make_vector_env(task: str, num_envs: int = 1, **overrides):
+    """Vector entry point of a v2 id."""
+    if _spec(task)["kind"] == "jump":
+        return DriftJumpVectorEnv(num_envs, task, **overrides)
+    env_keys = {"max_episode_steps", "autoreset_mode", "render_mode"}
+    config_overrides = {k: v for k, v in overrides.items() if k not in env_keys}
+    env_args = {k: v for k, v in overrides.items() if k in env_keys}
+    return HotCalibrateVectorEnv(num_envs, task, config_overrides=config_overrides, **env_args)
+
+
+__all__ = ["DriftJumpEnv", "DriftJumpVectorEnv", "HotCalibrateEnv", "HotCalibrateVectorEnv", "TASKS_V2",
+           "make_env", "make_vector_env", "task_config_v2"]
