@@ -126,6 +126,24 @@ def observation_names(config: EnvConfig, mode: str) -> list[str]:
     return names
 
 
+#: what each observation entry is, with its unit and scale (the environment pages' observation
+#: tables are built from these and from :func:`observation_bounds`; a name missing here fails
+#: the documentation build)
+OBSERVATION_DOCS = {
+    "output": "measured plant output y / y(Ms) (first-order plant), with sensor noise",
+    "displacement": "measured tip displacement x / x(Ms) (mechanical transducers), with sensor noise",
+    "velocity": "measured tip velocity v / (x(Ms)·ω1), ω1 the first natural angular frequency (rad/s)",
+    "field": "applied field H / field_limit (H in A/m)",
+    "elapsed": "steps taken / episode_steps",
+    "a_estimate": "built-in estimator's a (A/m) mapped linearly from Theta onto [-1, 1]",
+    "tuning_error": "estimator tuning error y_eps as sign·log10(1 + |y_eps|/eps)/6",
+    "curvature_sign": "±1: sign of the output's curvature in a at the current estimate",
+    "minmax_gap": "min-max gap nu* as log1p(nu*)/log1p(2 Ms) (nu* in A/m)",
+    "previous_estimate": "the agent's previous estimate of a, mapped from Theta onto [-1, 1]",
+    "temperature": "measured coil temperature (T − T_ref)/10 K (with temperature_sensor=True)",
+}
+
+
 def observation_bounds(config: EnvConfig, mode: str):
     bounds = {"displacement": (-OUTPUT_BOUND, OUTPUT_BOUND), "velocity": (-OUTPUT_BOUND, OUTPUT_BOUND),
               "output": (-OUTPUT_BOUND, OUTPUT_BOUND), "field": (-1.0, 1.0), "elapsed": (0.0, 1.0),
