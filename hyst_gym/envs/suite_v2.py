@@ -359,3 +359,56 @@ def make_vector_env(task: str, num_envs: int = 1, **overrides):
 
 __all__ = ["DriftJumpEnv", "DriftJumpVectorEnv", "HotCalibrateEnv", "HotCalibrateVectorEnv", "TASKS_V2",
            "make_env", "make_vector_env", "task_config_v2"]
+
+
+# ---------------------------------------------------------------------------- the floor of the calibration tasks
+
+
+def output_gain(config) -> float:
+    """``G = sum_k |h_k| / scale`` (1/(A/m)): the l1 norm of the normalized measured output's response to a
+    unit pulse of M (the transducer's first-order-hold map, summed until it has decayed)."""
+    from .core import output_scales
+
+    model = config.transducer.discretize(config.dt)
+    scale = output_scales(config, model)[0]
+    state = np.zeros(np.shape(model.phi)[0])
+    total, previous = 0.0, 1.0  # u_0 = drive_gain*1 (the pulse), u_k = 0 after
+    for step in range(100_000):
+        u0 = model.drive_gain * previous
+        state = model.phi @ state + model.gamma0 * u0 + model.gamma1 * model.drive_gain * (1.0 if step == 0 else 0.0)
+        previous = 0.0
+        total += abs(state[model.output_index])
+        if step > 10 and abs(state).max() < 1e-14 * max(total, 1e-300):
+            break
+    return total / scale
+
+
+def bound_setting(config):
+    """The :class:`~hyst_gym.estimation.information_bound.BoundSetting` of a calibration task's config."""
+    from ..estimation.information_bound import BoundSetting
+
+    t_lo, t_hi = config.initial_temperature_range
+    return BoundSetting(config.dt, config.episode_steps, config.field_limit, config.max_field_change,
+                        config.output_noise, output_gain(config), float(config.a_of(t_lo)), float(config.a_of(t_hi)))
+
+
+#: random admissible histories of the sensitivity envelope (and as many again to check it)
+ENVELOPE_PATHS = 256
+
+
+def calibration_floor(task: str, n_paths: int = ENVELOPE_PATHS) -> dict:
+    """The Van Trees floor of a calibration task (RMS error over the episode and the prior, A/m), with the
+    pieces it is made of."""
+    from ..estimation.information_bound import episode_floor, sensitivity_table
+
+    config = task_config_v2(task)
+    setting = bound_setting(config)
+    a_top = float(config.a_of(config.temperature_limit))
+    table = sensitivity_table(config.hysteresis, (setting.a_lo, a_top), config.field_limit, config.max_field_change,
+                              config.max_field_step, n_paths=n_paths, steps=config.episode_steps)
+    return {"value": episode_floor(setting, table), "kind": "bound",
+            "how": "Van Trees: RMS over the episode of 1/sqrt(J_prior + I_t), I_t <= G^2 sum Phi^2/sigma^2 (slew-reach "
+                   "envelope of |dM/da|, thermal limit relaxed); envelope from the initial curve and "
+                   f"{n_paths} random admissible histories, checked on {n_paths} independent ones",
+            "gain_per_Ms": float(setting.gain * config.hysteresis.Ms), "peak_sensitivity": float(table.envelope[-1]),
+            "histories_over_initial_curve": table.curve_ratio, "check_ratio": table.check_ratio}
