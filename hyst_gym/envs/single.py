@@ -34,6 +34,8 @@ class HystEnv(gym.Env):
     **overrides
         Fields of :class:`EnvConfig` to change.
 
+    Notes
+    -----
     Reset options: ``initial_temperature`` (K), ``ambient_drift_rate`` (K/s), ``a_true``
     (A/m, sets the initial temperature), ``a_estimate`` (A/m, thetahat(0)); each must lie
     in the range the config makes physical (``ValueError`` naming it otherwise).
