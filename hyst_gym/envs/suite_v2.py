@@ -190,6 +190,11 @@ class HotCalibrateVectorEnv(_Calibrate, IdentificationVectorEnv):
 
     def step(self, actions):
         observation, reward, terminated, truncated, info = super().step(actions)
+        if "final_obs" in info:  # SAME_STEP autoreset: the finished sub-envs' last observations
+            final = np.full(self.num_envs, None, dtype=object)
+            for row, obs in enumerate(info["final_obs"]):
+                final[row] = None if obs is None else obs[self._keep]
+            info["final_obs"] = final
         return observation[:, self._keep], reward, terminated, truncated, info
 
 
@@ -311,7 +316,7 @@ class DriftJumpEnv(_Jump, ExcitationEnv):
 
 class DriftJumpVectorEnv(_Jump, ExcitationVectorEnv):
     """Native vector env of ``hyst_gym/DriftJump-v0`` (see :class:`DriftJumpEnv`); sub-envs that are
-    reset automatically draw a new jump."""
+    reset automatically (``NEXT_STEP`` or ``SAME_STEP``) draw a new jump, as a single env's reset does."""
 
     def __init__(self, num_envs: int = 1, task: str = "hyst_gym/DriftJump-v0", **overrides):
         if _spec(task)["kind"] != "jump":
@@ -330,11 +335,19 @@ class DriftJumpVectorEnv(_Jump, ExcitationVectorEnv):
         return observation, info
 
     def step(self, actions):
+        from gymnasium.vector import AutoresetMode
+
         self._apply_jumps()
         done_before = self._autoreset.copy()
         result = super().step(actions)
-        if done_before.any():
-            self._draw_jumps(np.flatnonzero(done_before), {})
+        if self.autoreset_mode == AutoresetMode.NEXT_STEP:
+            reset_rows = np.flatnonzero(done_before)
+        elif self.autoreset_mode == AutoresetMode.SAME_STEP:
+            reset_rows = np.flatnonzero(result[2] | result[3])
+        else:  # DISABLED: the caller resets, and reset() draws new jumps
+            reset_rows = np.zeros(0, dtype=np.int64)
+        if reset_rows.size:
+            self._draw_jumps(reset_rows, {})
         return result
 
 

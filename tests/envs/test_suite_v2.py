@@ -79,3 +79,17 @@ def test_bad_jump_option_is_one_error():
         env.reset(seed=0, options={"jump_step": 0.5})
     with pytest.raises(ValueError, match="unknown suite v2 task"):
         gymnasium.make("hyst_gym/DriftJump-v0", task="hyst_gym/Nope-v0")
+
+
+@pytest.mark.parametrize("task_id", ["hyst_gym/DriftJump-v0", "hyst_gym/DisplacementOnly-v0"])
+def test_sb3_adapter_trains_a_few_steps(task_id):
+    """Stable-Baselines3 on the native vector env (SAME_STEP autoreset): episodes end and restart with the
+    task's own observation size and a fresh jump."""
+    from stable_baselines3 import PPO
+
+    from hyst_gym.envs import make_sb3_vec_env
+
+    venv = make_sb3_vec_env(task_id, num_envs=2, seed=0, episode_steps=30)
+    model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu")
+    model.learn(128)
+    assert venv.observation_space.shape == gymnasium.make(task_id).observation_space.shape
