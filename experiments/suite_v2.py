@@ -1,0 +1,738 @@
+"""Benchmark suite v2 (issue 23): tasks with their own stories, floors that are bounds where derivable.
+
+    hyst-gym benchmark --suite v2 [--quick | --reduced] [--tasks ID,ID] [--out DIR] [--no-docs]
+    python -m experiments.suite_v2 --suite v2 [same options]
+    hyst-gym benchmark [--suite v1] ...      # suite v1 (the sanity tier), unchanged: experiments.suite_v1
+
+Tasks (:mod:`hyst_gym.envs.suite_v2`): three calibration tasks (the agent drives the coil and reports
+a every step; floor: a Van Trees **bound**, :mod:`hyst_gym.estimation.information_bound`) and a
+drift-jump task (the built-in min-max estimator identifies a, which jumps at an unknown time;
+floor: an **oracle**, as in v1). All agents play the task's native vector env on the same draws
+(tuning :data:`~baselines.scenarios.TUNING_SEEDS`, held-out :data:`~baselines.scenarios.HELDOUT_SEEDS`).
+
+Metrics (lower is better; width(Theta) counted per step after an overheat, as the env's reward):
+
+* calibration: the RMS of ``a_estimate - a_true`` (A/m) over the 200 steps *and the draws*
+  (``sqrt(mean over draws of the per-draw mean square)``): the statistic the Van Trees bound is
+  about (it bounds an expectation, so the mean, not the IQM, is compared with it);
+* drift jump: v1's metric, the mean ``|a_estimate - a_true|`` (A/m) per draw, IQM over draws.
+
+Agents (kind): ``open_loop``: the paper's ramp, ``tuned_open_loop`` (best of v1's design family
+without feedback on the tuning draws), ``optimal_design_prior`` (the Fisher multisine over the
+task's a prior), ``direct_design`` (CMA-ES over a 9-knot field on the task metric);
+``feedback``: ``thermostat``, ``proportional`` (the thermal budget read from the estimate), and on
+the jump task ``identify_then_idle`` (excite while the estimator's tuning error says it is not
+tuned); ``estimator`` (jump task, context): the gradient and multiple-model estimators under the
+tuned input; ``rl``: PPO, SAC, RecurrentPPO (:mod:`baselines.train`, dense env reward). In the
+calibration tasks every non-RL agent reports the grid-posterior (Bayes) estimate of
+:class:`baselines.calibration_agents.PosteriorCalibration`; RL reports its own.
+
+Headroom: ``reference/floor - 1`` (reference: the best ``open_loop`` agent), 95 % bootstrap CI over
+the draws; a task enters the suite when the CI lies above 25 %. Normalized score:
+``(reference - agent)/(reference - floor)``. RL gap: a task counts for issue 23 when the best RL
+agent's normalized score has its CI below 0.7 (it leaves at least 30 % of the gap).
+
+Profiles: ``quick`` (<= 10 min: 16 held-out draws, small searches, the committed RL models, no
+training), ``reduced`` (this session's measurement: 24 held-out draws, RL trained at small budgets,
+3 seeds), ``full`` (50 draws, 10 seeds; not run yet). Writes ``experiments/results/suite_v2[_PROFILE].json``
+and ``.md``, ``docs/figures/suite_v2[_PROFILE].png`` and (full profile) the ``suite-v2`` section of
+``docs/results/suite.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import pathlib
+import sys
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "experiments" / "results"
+FIGURES = ROOT / "docs" / "figures"
+RAW = RESULTS / "raw" / "suite_v2"
+DOCS_PAGE = ROOT / "docs" / "results" / "suite.md"
+DOCS_AREA = "suite-v2"
+HEADROOM_TARGET = 0.25
+GAP_TARGET = 0.30  # the best RL agent must leave at least this fraction of the gap
+RL_ALGORITHMS = ("ppo", "sac", "recurrent_ppo")
+CURVE_POINTS = 5
+
+
+@dataclass(frozen=True)
+class Profile:
+    """How much of everything a run does."""
+
+    name: str
+    heldout: int
+    tuning: int
+    cma_evaluations: int
+    fisher_evaluations: int
+    rl_seeds: int
+    rl_steps: dict          # algo -> env steps per seed
+    flat_factor: int        # seed 0..flat_seeds-1 of PPO also trained this many times longer (0: not)
+    flat_seeds: int
+    bootstrap: int
+    train: bool
+
+
+PROFILES = {
+    "full": Profile("full", 50, 10, 240, 200, 10, {"ppo": 100_000, "sac": 6_000, "recurrent_ppo": 100_000}, 3, 10,
+                    2000, True),
+    "reduced": Profile("reduced", 24, 6, 40, 40, 3, {"ppo": 30_000, "sac": 3_000, "recurrent_ppo": 15_000}, 3, 2,
+                       1000, True),
+    "quick": Profile("quick", 16, 4, 12, 20, 3, {"ppo": 30_000, "sac": 3_000, "recurrent_ppo": 15_000}, 3, 2, 300,
+                     False),
+}
+
+
+# ---------------------------------------------------------------------------- designs
+
+
+def design_family(kind: str):
+    """v1's design family: on the calibration tasks without the designs that read the truth or the
+    min-max estimator's tuning error (there is no built-in estimator), on the jump task all of it."""
+    from experiments.suite_v1 import design_family as v1_family
+
+    family = v1_family()
+    if kind == "calibrate":
+        family = [d for d in family if not d.truth and d.gate is None]
+    return family
+
+
+def task_spec(task_id: str) -> dict:
+    from hyst_gym.envs.suite_v2 import TASKS_V2
+
+    return TASKS_V2[task_id]
+
+
+def task_config(task_id: str):
+    from hyst_gym.envs.suite_v2 import task_config_v2
+
+    return task_config_v2(task_id)
+
+
+def field_agent(designs, task_id: str):
+    """A DesignBank reading the estimate column of the task's observation (the min-max estimate on the jump
+    task, the previous reported estimate on the calibration tasks)."""
+    import gymnasium
+
+    import hyst_gym  # noqa: F401
+    from baselines.suite_agents import DesignBank
+
+    names = gymnasium.make(task_id).unwrapped.observation_names
+    column = "a_estimate" if "a_estimate" in names else "previous_estimate"
+    return DesignBank(designs, task_config(task_id), names.index(column))
+
+
+def design_agent(designs, task_id: str):
+    """The agent that plays ``designs`` (one per sub-env, or one everywhere) on the task."""
+    agent = field_agent(designs, task_id)
+    if task_spec(task_id)["kind"] != "calibrate":
+        return agent
+    from baselines.calibration_agents import PosteriorCalibration
+
+    return PosteriorCalibration(agent, task_id, name=agent.name)
+
+
+# ---------------------------------------------------------------------------- playing
+
+
+def play(agent, task_id: str, seeds, options=None, overrides=None):
+    """Play ``agent`` once per seed (one sub-env each, deterministic actions). Returns the per-draw
+    metric (mean square error for calibration, mean absolute error for the jump task; A/m units,
+    width(Theta) per step after an overheat) and the draws (start temperature, drift, jump)."""
+    import gymnasium
+
+    import hyst_gym  # noqa: F401
+
+    seeds = [int(s) for s in seeds]
+    n = len(seeds)
+    env = gymnasium.make_vec(task_id, num_envs=n, vectorization_mode="vector_entry_point", **(overrides or {}))
+    inner = env.unwrapped
+    config = inner.config
+    power = 2 if task_spec(task_id)["kind"] == "calibrate" else 1
+    total = np.zeros(n)
+    try:
+        agent.reset(seeds[0])
+        observations, infos = env.reset(seed=seeds, options=options)
+        draws = {"temperature": inner.sim.temperature.copy(), "drift_rate": inner.sim.drift_rate.copy()}
+        if hasattr(inner, "jump_step"):
+            draws.update(jump_step=inner.jump_step.copy(), jump_change=inner.jump_change.copy())
+        alive = np.ones(n, dtype=bool)
+        start = np.ones(n, dtype=bool)
+        for _ in range(config.episode_steps):
+            if getattr(agent, "reads_truth", False):
+                agent.observe(infos)
+            actions, _ = agent.predict(observations, episode_start=start, deterministic=True)
+            observations, _, terminated, _, infos = env.step(np.asarray(actions, dtype=np.float32))
+            start = np.zeros(n, dtype=bool)
+            error = np.abs(infos["a_estimate"] - infos["a_true"])
+            total += np.where(alive, error, config.theta_width) ** power
+            alive &= ~np.asarray(terminated)
+    finally:
+        env.close()
+    return total / config.episode_steps, draws
+
+
+def batch_size(task_id: str) -> int:
+    """Sub-envs per batched play: the calibration agents run 64 node simulators per sub-env."""
+    return 512 if task_spec(task_id)["kind"] == "calibrate" else 4096
+
+
+def family_scores(task_id: str, designs, seeds):
+    """(n_designs, n_seeds) per-draw metric of every design on every seed, and the draws."""
+    seeds = [int(s) for s in seeds]
+    pairs = [(d, s) for d in range(len(designs)) for s in range(len(seeds))]
+    per_batch = max(batch_size(task_id) // len(seeds), 1) * len(seeds)
+    scores = np.zeros(len(pairs))
+    draws = None
+    for first in range(0, len(pairs), per_batch):
+        chunk = pairs[first:first + per_batch]
+        metric, chunk_draws = play(design_agent([designs[d] for d, _ in chunk], task_id), task_id,
+                                   [seeds[s] for _, s in chunk])
+        scores[first:first + len(chunk)] = metric
+        if draws is None:
+            draws = {key: value[:len(seeds)] for key, value in chunk_draws.items()}
+    return scores.reshape(len(designs), len(seeds)), draws
+
+
+#: seeds of the oracle's noise replicates start here (disjoint from every other seed set)
+REPLICATE_OFFSET = 10_000_000
+
+
+def oracle_scores(task_id: str, designs, heldout_scores, draws, seeds):
+    """Jump task: per held-out draw, the design best on a noise replicate with the draw's start temperature,
+    drift, jump step and jump change, scored on the draw itself."""
+    agent = design_agent(designs, task_id)
+    choice = np.zeros(len(seeds), dtype=np.int64)
+    for j, seed in enumerate(seeds):
+        options = {"initial_temperature": float(draws["temperature"][j]),
+                   "ambient_drift_rate": float(draws["drift_rate"][j]),
+                   "jump_step": int(draws["jump_step"][j]), "jump_change": float(draws["jump_change"][j])}
+        replicate = [REPLICATE_OFFSET + 1000 * int(seed) + i for i in range(len(designs))]
+        metric, _ = play(agent, task_id, replicate, options=options)
+        choice[j] = int(np.argmin(metric))
+    return heldout_scores[choice, np.arange(len(seeds))], choice
+
+
+# ---------------------------------------------------------------------------- statistics
+
+
+def statistic_of(task_id: str):
+    """(name, function of a (runs, draws) matrix): RMS over draws for calibration, IQM for the jump task."""
+    from baselines.stats import iqm
+
+    if task_spec(task_id)["kind"] == "calibrate":
+        return "rms", lambda scores: float(np.sqrt(np.mean(scores)))
+    return "iqm", iqm
+
+
+def _matrix(scores) -> np.ndarray:
+    scores = np.asarray(scores, dtype=np.float64)
+    return scores[None, :] if scores.ndim == 1 else scores
+
+
+def bootstrap(stat, n_boot: int, *matrices, combine=None, seed: int = 0):
+    """Value and 95 % CI of ``combine(stat(m1), stat(m2), ...)`` over draws resampled jointly (columns) and
+    runs within each column; ``combine`` default: the single statistic."""
+    combine = combine or (lambda *values: values[0])
+    matrices = [_matrix(m) for m in matrices]
+    n_draws = matrices[0].shape[1]
+    rng = np.random.default_rng(seed)
+    values = np.empty(n_boot)
+    for b in range(n_boot):
+        columns = rng.integers(0, n_draws, n_draws)
+        values[b] = combine(*(stat(m[rng.integers(0, m.shape[0], (m.shape[0], n_draws)), columns])
+                              for m in matrices))
+    finite = values[np.isfinite(values)]
+    low, high = np.percentile(finite, [2.5, 97.5]) if finite.size else (np.nan, np.nan)
+    return float(combine(*(stat(m) for m in matrices))), [float(low), float(high)]
+
+
+def floor_matrix(task_id: str, floor: dict, n_draws: int) -> np.ndarray:
+    """The floor as per-draw scores for the bootstrap: the oracle's own, or the bound (constant) in the
+    metric's units (a mean square for calibration)."""
+    if floor["kind"] == "oracle":
+        return np.asarray(floor["per_draw"], dtype=np.float64)
+    return np.full(n_draws, floor["value"] ** 2)
+
+
+# ---------------------------------------------------------------------------- baselines
+
+
+def tuned_agents(task_id: str, profile: Profile, log=print):
+    """The design family on the tuning and held-out draws: per-kind best on the tuning draws, scored on the
+    held-out draws. Returns (agents {name: (kind, scores)}, tuned names, family, held-out scores, draws)."""
+    from baselines.scenarios import HELDOUT_SEEDS, TUNING_SEEDS
+
+    start = time.time()
+    stat_name, stat = statistic_of(task_id)
+    kind = task_spec(task_id)["kind"]
+    family = design_family(kind)
+    tune_scores, _ = family_scores(task_id, family, TUNING_SEEDS[:profile.tuning])
+    held_scores, draws = family_scores(task_id, family, HELDOUT_SEEDS[:profile.heldout])
+    tuned_value = np.array([stat(row[None, :]) for row in tune_scores])
+    kinds = np.array([design.kind for design in family])
+
+    def best(design_kind, prefix=""):
+        members = [i for i in np.flatnonzero(kinds == design_kind) if family[i].name.startswith(prefix)]
+        return members[int(np.argmin(tuned_value[members]))]
+
+    picks = {"tuned_open_loop": ("open_loop", best("open_loop")),
+             "thermostat": ("feedback", best("feedback", "thermostat_")),
+             "proportional": ("feedback", best("feedback", "proportional_"))}
+    if kind != "calibrate":
+        picks["identify_then_idle"] = ("feedback", best("feedback", "gate_"))
+    agents = {name: (design_kind, held_scores[index]) for name, (design_kind, index) in picks.items()}
+    tuned = {name: family[index].name for name, (_, index) in picks.items()}
+    log(f"[suite v2] {task_id}: family of {len(family)} designs tuned and played ({time.time() - start:.0f} s)")
+    return agents, tuned, family, held_scores, draws
+
+
+def searched_designs(task_id: str, profile: Profile, heldout):
+    """The paper's ramp, the prior-averaged Fisher multisine and the CMA-ES direct design, on the held-out draws."""
+    from baselines.direct_design import search_direct_design
+    from baselines.optimal_design import design_input
+    from baselines.scenarios import TUNING_SEEDS
+    from baselines.schedules import ExcitationLimits, Ramp
+    from baselines.suite_agents import Design
+
+    config = task_config(task_id)
+    _, stat = statistic_of(task_id)
+    limits = ExcitationLimits(config.field_limit, config.slew_rate_limit, config.dt)
+    low = config.initial_temperature_range[0]
+    prior = tuple(float(a) for a in config.a_of(np.linspace(low, config.temperature_limit, 5)))
+    fisher = design_input(limits, prior, period=config.episode_duration,
+                          max_evaluations=profile.fisher_evaluations).design
+    tuning = TUNING_SEEDS[:profile.tuning]
+
+    def score(schedule):
+        return stat(play(design_agent([Design("direct_design", schedule)], task_id), task_id, tuning)[0][None, :])
+
+    direct = search_direct_design(score, limits, config.episode_duration, n_knots=9,
+                                  max_evaluations=profile.cma_evaluations).schedule
+    agents = {}
+    for name, schedule in (("ramp", Ramp()), ("optimal_design_prior", fisher), ("direct_design", direct)):
+        agents[name] = ("open_loop", play(design_agent([Design(name, schedule)], task_id), task_id, heldout)[0])
+    designs = {"optimal_design_prior": list(fisher.coefficients), "direct_design_knots": list(direct.knots)}
+    return agents, designs
+
+
+def estimator_agents(task_id: str, design, heldout):
+    """Jump task: the gradient and multiple-model estimators as the env's estimator under ``design`` (context)."""
+    return {name: ("estimator", play(design_agent([design], task_id), task_id, heldout,
+                                     overrides={"estimator": name})[0])
+            for name in ("gradient", "multiple_model")}
+
+
+# ---------------------------------------------------------------------------- RL
+
+
+def model_dir(task_id: str, algo: str, seed: int, steps: int, raw: pathlib.Path = RAW) -> pathlib.Path:
+    return raw / "train" / task_id.split("/")[-1] / algo / f"steps{steps}" / f"seed{seed}"
+
+
+def train_one(task_id: str, algo: str, seed: int, steps: int, raw: pathlib.Path = RAW, log=print):
+    """Train one seed (dense env reward, 8 envs, baselines.train defaults) unless it is there already."""
+    from baselines.environment import EpisodeSpec
+    from baselines.train import train
+
+    out = model_dir(task_id, algo, seed, steps, raw)
+    if (out / "model.zip").exists():
+        return
+    start = time.time()
+    config = task_config(task_id)
+    train(algo, EpisodeSpec(task_id, {}, config.dt), int(steps), int(seed), out, n_envs=8,
+          checkpoint_every=max(int(steps) // CURVE_POINTS, 1), progress=False, scenario=task_id.split("/")[-1])
+    log(f"[suite v2] trained {task_id} {algo} seed {seed} x {steps:,} steps in {time.time() - start:.0f} s")
+
+
+def rl_runs(profile: Profile):
+    """(algo, seed, steps) of a profile: every algorithm at its budget, and PPO at flat_factor x its budget
+    on the first flat_seeds seeds (the flatness check)."""
+    runs = [(algo, seed, steps) for seed in range(profile.rl_seeds) for algo, steps in profile.rl_steps.items()]
+    if profile.flat_factor:
+        runs += [("ppo", seed, profile.rl_steps["ppo"] * profile.flat_factor) for seed in range(profile.flat_seeds)]
+    return runs
+
+
+def train_all(task_ids, profile: Profile, raw: pathlib.Path = RAW, log=print):
+    for algo, seed, steps in rl_runs(profile):
+        for task_id in task_ids:
+            train_one(task_id, algo, seed, steps, raw, log)
+
+
+def rl_agents(task_id: str, profile: Profile, heldout, raw: pathlib.Path = RAW):
+    """The trained RL agents found: {name: ("rl", (seeds, draws) scores)} and their training record."""
+    from baselines.rl import PolicyAgent
+
+    found, record = {}, {}
+    budgets = {(algo, steps) for algo, _, steps in rl_runs(profile)}
+    for algo, steps in sorted(budgets):
+        folders = [model_dir(task_id, algo, seed, steps, raw) for seed in range(profile.rl_seeds)]
+        folders = [f for f in folders if (f / "model.zip").exists()]
+        if not folders:
+            continue
+        name = algo if steps == profile.rl_steps[algo] else f"{algo}_x{steps // profile.rl_steps[algo]}"
+        found[name] = ("rl", np.array([play(PolicyAgent.load(f), task_id, heldout)[0] for f in folders]))
+        configs = [json.loads((f / "config.json").read_text()) for f in folders]
+        record[name] = {"algo": algo, "steps": steps, "seeds": [c["seed"] for c in configs],
+                        "train_wall_s": round(sum(c.get("wall_s_last_session", 0.0) for c in configs), 1)}
+    return found, record
+
+
+# ---------------------------------------------------------------------------- one task
+
+
+def floor_of(task_id: str, family, held_scores, draws, heldout) -> dict:
+    """The task's floor: the Van Trees bound (calibration) or the replicate oracle (jump)."""
+    if task_spec(task_id)["kind"] == "calibrate":
+        from hyst_gym.envs.suite_v2 import calibration_floor
+
+        floor = calibration_floor(task_id)
+        floor["checks"] = ("tests/estimation/test_information_bound.py: the bound sits below Monte-Carlo of the "
+                           "posterior mean on a linear-Gaussian case and within 10 % of it when data dominate; the "
+                           "finite-difference |dM/da| matches the estimator bank's slope; the Fisher information of "
+                           "admissible inputs computed by baselines.information stays below the ceiling; "
+                           "check_ratio: independent random histories against the envelope")
+        return floor
+    oracle, choice = oracle_scores(task_id, family, held_scores, draws, heldout)
+    return {"kind": "oracle", "per_draw": oracle.tolist(), "choice": [family[i].name for i in choice],
+            "how": "per draw, the best design of v1's family (open loop, feedback rules, and versions reading the "
+                   "true temperature and error) chosen on a noise replicate with the draw's start temperature, "
+                   "drift, jump step and jump size, scored on the draw"}
+
+
+def evaluate_task(task_id: str, profile: Profile, raw: pathlib.Path = RAW, log=print) -> dict:
+    """Every agent's per-draw metric on the held-out draws, the floor, and the tuning choices."""
+    from baselines.scenarios import HELDOUT_SEEDS
+    from baselines.suite_agents import Design  # noqa: F401  (the family's type)
+
+    start = time.time()
+    heldout = HELDOUT_SEEDS[:profile.heldout]
+    agents, tuned, family, held_scores, draws = tuned_agents(task_id, profile, log)
+    floor = floor_of(task_id, family, held_scores, draws, heldout)
+    searched, designs = searched_designs(task_id, profile, heldout)
+    agents.update(searched)
+    log(f"[suite v2] {task_id}: floor and searched designs ({time.time() - start:.0f} s)")
+    if task_spec(task_id)["kind"] != "calibrate":
+        best_open = next(d for d in family if d.name == tuned["tuned_open_loop"])
+        agents.update(estimator_agents(task_id, best_open, heldout))
+    found, record = rl_agents(task_id, profile, heldout, raw)
+    agents.update(found)
+    log(f"[suite v2] {task_id}: {len(agents)} agents played ({time.time() - start:.0f} s)")
+    return {"agents": agents, "floor": floor, "tuned": tuned, "designs": designs, "rl": record,
+            "draws": {key: np.asarray(value).tolist() for key, value in draws.items()}, "wall_s": time.time() - start}
+
+
+def _in_suite(headroom_ci) -> tuple[bool, str]:
+    if headroom_ci[0] > HEADROOM_TARGET:
+        return True, f"headroom CI [{100 * headroom_ci[0]:.0f}, {100 * headroom_ci[1]:.0f}] % lies above 25 %"
+    return False, f"headroom CI [{100 * headroom_ci[0]:.0f}, {100 * headroom_ci[1]:.0f}] % does not lie above 25 %"
+
+
+def rl_gap(agents: dict) -> dict | None:
+    """The best RL agent's normalized score and whether it leaves >= 30 % of the gap (CI below 0.7)."""
+    rl = {name: entry["normalized"] for name, entry in agents.items() if entry["kind"] == "rl"}
+    if not rl:
+        return None
+    best = max(rl, key=lambda name: rl[name]["value"])
+    left = 1.0 - GAP_TARGET
+    return {"best": best, "normalized": rl[best]["value"], "ci": rl[best]["ci"],
+            "leaves_30_percent": bool(rl[best]["ci"][1] < left)}
+
+
+def summarize_task(task_id: str, evaluated: dict, profile: Profile) -> dict:
+    """The JSON entry of one task: floor, agents (statistic, CI, kind, normalized), headroom, in_suite."""
+    stat_name, stat = statistic_of(task_id)
+    n_draws = profile.heldout
+    floor = dict(evaluated["floor"])
+    floor_scores = floor_matrix(task_id, floor, n_draws)
+    if floor["kind"] == "oracle":
+        floor["value"], floor["ci"] = bootstrap(stat, profile.bootstrap, floor_scores)
+        floor["draws_beaten"] = {name: int(np.sum(_matrix(s).mean(axis=0) < floor_scores))
+                                 for name, (_, s) in evaluated["agents"].items()}
+    agents = {}
+    for name, (kind, scores) in evaluated["agents"].items():
+        value, ci = bootstrap(stat, profile.bootstrap, scores)
+        agents[name] = {stat_name: value, "ci": ci, "kind": kind, "runs": int(_matrix(scores).shape[0])}
+        if stat_name != "iqm":
+            agents[name]["iqm"] = value  # the suite's common key; "statistic" says which it is
+    reference = min((n for n, a in agents.items() if a["kind"] == "open_loop"), key=lambda n: agents[n][stat_name])
+    ref_scores = _matrix(evaluated["agents"][reference][1])
+    headroom = bootstrap(stat, profile.bootstrap, ref_scores, floor_scores[None, :],
+                         combine=lambda r, f: r / f - 1.0)
+    for name, (_, scores) in evaluated["agents"].items():
+        value, ci = bootstrap(stat, profile.bootstrap, scores, ref_scores, floor_scores[None, :],
+                              combine=lambda a, r, f: (r - a) / (r - f) if r != f else np.nan)
+        agents[name]["normalized"] = {"value": value, "ci": ci}
+    in_suite, reason = _in_suite(headroom[1])
+    spec = task_spec(task_id)
+    return {"description": spec["description"], "difficulty": spec["difficulty"], "family": spec["kind"],
+            "statistic": stat_name, "metric": METRICS[spec["kind"]], "lower_is_better": True,
+            "floor": floor, "reference": reference,
+            "headroom": {"value": headroom[0], "ci": headroom[1], "target": HEADROOM_TARGET},
+            "in_suite": in_suite, "reason": reason, "agents": agents, "rl_gap": rl_gap(agents),
+            "rl": evaluated["rl"], "tuned": evaluated["tuned"], "designs": evaluated["designs"],
+            "draws": evaluated["draws"], "wall_s": evaluated["wall_s"]}
+
+
+METRICS = {"calibrate": "RMS of a_estimate - a_true over the 200 steps and the draws, A/m (width(Theta) per "
+                        "step after an overheat)",
+           "jump": "mean |a_estimate - a_true| over the 200 steps, A/m (width(Theta) per step after an overheat), "
+                   "IQM over draws"}
+
+
+# ---------------------------------------------------------------------------- speed and the sanity tier
+
+#: wall seconds per timed case of the env speed measurement
+SPEED_BUDGET_S = 1.0
+SPEED_TARGETS = {"single": 20_000, "1024": 200_000}
+
+
+def env_speed(task_id: str, budget: float = SPEED_BUDGET_S) -> dict:
+    """Env steps/s under random actions: one ``gymnasium.make`` env, and the native vector env at n = 1024."""
+    import gymnasium
+
+    import hyst_gym  # noqa: F401
+
+    env = gymnasium.make(task_id)
+    env.reset(seed=0)
+    actions = np.random.default_rng(0).uniform(-1, 1, (500,) + env.action_space.shape).astype(np.float32)
+    for action in actions[:100]:
+        env.step(action)
+    steps, start = 0, time.perf_counter()
+    while time.perf_counter() - start < budget:
+        for action in actions:
+            _, _, terminated, truncated, _ = env.step(action)
+            steps += 1
+            if terminated or truncated:
+                env.reset()
+    single = steps / (time.perf_counter() - start)
+    venv = gymnasium.make_vec(task_id, num_envs=1024, vectorization_mode="vector_entry_point")
+    venv.reset(seed=0)
+    batch = np.random.default_rng(0).uniform(-1, 1, (8, 1024) + venv.single_action_space.shape).astype(np.float32)
+    venv.step(batch[0])
+    calls, start = 0, time.perf_counter()
+    while time.perf_counter() - start < budget:
+        venv.step(batch[calls % 8])
+        calls += 1
+    return {"single": single, "1024": calls * 1024 / (time.perf_counter() - start)}
+
+
+def sanity_tier(results: pathlib.Path = RESULTS) -> list:
+    """Suite v1's tasks (the sanity tier) from its committed full-profile JSON: best RL normalized score."""
+    path = results / "suite_v1.json"
+    if not path.exists():
+        return []
+    tasks = json.loads(path.read_text())["tasks"]
+    rows = []
+    for task_id, task in tasks.items():
+        if not task["in_suite"]:
+            continue
+        rl = {n: a["normalized"] for n, a in task["agents"].items() if a["kind"] == "rl"}
+        best = max(rl, key=lambda n: rl[n]["iqm"]) if rl else None
+        rows.append({"task": task_id, "floor": task["floor"]["value"], "floor_kind": task["floor"]["kind"],
+                     "best_rl": best, "normalized": rl[best]["iqm"] if best else None,
+                     "ci": rl[best]["ci"] if best else None, "source": "experiments/results/suite_v1.json"})
+    return rows
+
+
+# ---------------------------------------------------------------------------- report
+
+AGENT_ORDER = ("ramp", "tuned_open_loop", "optimal_design_prior", "direct_design", "gradient", "multiple_model",
+               "thermostat", "proportional", "identify_then_idle", "ppo", "ppo_x3", "sac", "recurrent_ppo")
+
+
+def _cell(entry, statistic):
+    norm = entry["normalized"]
+    return (f"{entry[statistic]:.1f} [{entry['ci'][0]:.1f}, {entry['ci'][1]:.1f}]; "
+            f"{norm['value']:+.2f} [{norm['ci'][0]:+.2f}, {norm['ci'][1]:+.2f}]")
+
+
+def _task_rows(tasks: dict) -> list:
+    lines = ["| task (family) | metric | floor (kind) | reference (best without feedback) | headroom [CI] | in suite "
+             "| best RL: normalized [CI] | leaves >= 30 % | steps/s single, n=1024 |", "|---|---|---|---|---|---|---|---|---|"]
+    for task_id, task in sorted(tasks.items(), key=lambda item: item[1]["difficulty"]):
+        floor, head, gap = task["floor"], task["headroom"], task["rl_gap"]
+        ref = task["agents"][task["reference"]][task["statistic"]]
+        rl = "—" if gap is None else f"{gap['best']} {gap['normalized']:+.2f} [{gap['ci'][0]:+.2f}, {gap['ci'][1]:+.2f}]"
+        leaves = "—" if gap is None else ("yes" if gap["leaves_30_percent"] else "no")
+        speed = task["steps_per_s"]
+        lines.append(f"| `{task_id}` ({task['family']}) | {task['statistic']} | {floor['value']:.1f} ({floor['kind']}) "
+                     f"| {task['reference']} {ref:.1f} | {100 * head['value']:.0f} % [{100 * head['ci'][0]:.0f}, "
+                     f"{100 * head['ci'][1]:.0f}] | {'yes' if task['in_suite'] else 'no'} | {rl} | {leaves} | "
+                     f"{speed['single']:,.0f}, {speed['1024']:,.0f} |")
+    return lines
+
+
+def markdown(data: dict) -> str:
+    tasks = data["tasks"]
+    lines = [f"Profile `{data['profile']}` ({data['profile_note']}): {data['heldout_draws']} held-out draws per agent; "
+             f"RL {data['rl_budget']}; wall time {data['wall_s'] / 60:.1f} min; hyst-gym {data['package_version']}.",
+             "Calibration tasks: RMS error over the episode and the draws (A/m), floor a Van Trees bound; jump "
+             "task: IQM of the per-draw mean |error| (A/m), floor an oracle. [95 % bootstrap CI]; lower is better.",
+             ""] + _task_rows(tasks)
+    names = [n for n in AGENT_ORDER if any(n in t["agents"] for t in tasks.values())]
+    order = sorted(tasks, key=lambda t: tasks[t]["difficulty"])
+    lines += ["", "Leaderboard: metric [CI]; normalized score (reference - agent)/(reference - floor) [CI] "
+              "(1 = the floor, 0 = the best input without feedback).", "",
+              "| agent (kind) | " + " | ".join(f"`{t.split('/')[-1]}`" for t in order) + " |",
+              "|---|" + "---|" * len(order)]
+    for name in names:
+        kind = next(tasks[t]["agents"][name]["kind"] for t in order if name in tasks[t]["agents"])
+        cells = [_cell(tasks[t]["agents"][name], tasks[t]["statistic"]) if name in tasks[t]["agents"] else "—"
+                 for t in order]
+        lines.append(f"| {name} ({kind}) | " + " | ".join(cells) + " |")
+    tier = data.get("sanity_tier", [])
+    if tier:
+        lines += ["", "Sanity tier (suite v1, `experiments/results/suite_v1.json`, full profile): "
+                  + "; ".join(f"`{r['task']}` best RL {r['best_rl']} closes {r['normalized']:.2f} "
+                              f"[{r['ci'][0]:.2f}, {r['ci'][1]:.2f}] of the gap to its {r['floor_kind']}"
+                              for r in tier) + "."]
+    return "\n".join(lines) + "\n"
+
+
+def figure(data: dict, path: pathlib.Path) -> None:
+    """One panel per task: every agent's statistic with its CI, the floor dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    order = sorted(data["tasks"], key=lambda t: data["tasks"][t]["difficulty"])
+    fig, axes = plt.subplots(1, len(order), figsize=(4.4 * len(order), 4.6), squeeze=False)
+    colors = {"open_loop": "tab:blue", "estimator": "tab:purple", "feedback": "tab:orange", "rl": "tab:green"}
+    for ax, task_id in zip(axes[0], order):
+        task = data["tasks"][task_id]
+        stat = task["statistic"]
+        names = [n for n in AGENT_ORDER if n in task["agents"]]
+        values = np.array([task["agents"][n][stat] for n in names])
+        errors = np.array([[task["agents"][n][stat] - task["agents"][n]["ci"][0],
+                            task["agents"][n]["ci"][1] - task["agents"][n][stat]] for n in names]).T
+        ax.barh(names, values, xerr=np.maximum(errors, 0), color=[colors[task["agents"][n]["kind"]] for n in names])
+        ax.axvline(task["floor"]["value"], color="k", ls="--", label=f"floor ({task['floor']['kind']})")
+        ax.set_xscale("log")
+        ax.set_title(task_id.split("/")[-1] + ("" if task["in_suite"] else " (rejected)"), fontsize=10)
+        ax.set_xlabel(f"{stat} of the a error, A/m (95 % CI)")
+        ax.invert_yaxis()
+        ax.legend(fontsize=8)
+    fig.suptitle(f"suite v2, profile {data['profile']}", fontsize=10)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+
+
+PROFILE_NOTES = {"full": "the suite's own decision", "quick": "a smoke run on fewer draws with the committed RL models; "
+                 "not the suite's decision", "reduced": "a reduced-budget measurement, NOT the full profile: fewer "
+                 "draws, 3 RL seeds at small budgets"}
+
+
+def run_suite(profile: Profile, task_ids, out: pathlib.Path, figure_path: pathlib.Path, raw: pathlib.Path = RAW,
+              docs: pathlib.Path | None = None, log=print) -> dict:
+    import hyst_gym
+    from baselines.scenarios import HELDOUT_SEEDS, TUNING_SEEDS
+
+    start = time.time()
+    if profile.train:
+        train_all(task_ids, profile, raw, log)
+    train_s = time.time() - start
+    tasks = {}
+    for task_id in task_ids:
+        summary = summarize_task(task_id, evaluate_task(task_id, profile, raw, log), profile)
+        summary["steps_per_s"] = env_speed(task_id)
+        tasks[task_id] = summary
+    data = {"suite": "v2", "profile": profile.name, "profile_note": PROFILE_NOTES[profile.name],
+            "package_version": hyst_gym.__version__, "env_ids": list(task_ids), "heldout_draws": profile.heldout,
+            "seeds": {"tuning": list(TUNING_SEEDS[:profile.tuning]), "heldout": list(HELDOUT_SEEDS[:profile.heldout]),
+                      "rl_training": list(range(profile.rl_seeds))},
+            "settings": asdict(profile),
+            "rl_budget": ", ".join(f"{algo} {steps:,} env steps x {profile.rl_seeds} seeds"
+                                   for algo, steps in profile.rl_steps.items())
+                         + (f"; PPO x{profile.flat_factor} on {profile.flat_seeds} seeds (flatness check)"
+                            if profile.flat_factor else ""),
+            "targets": {"headroom": HEADROOM_TARGET, "rl_gap_left": GAP_TARGET, "speed_steps_per_s": SPEED_TARGETS},
+            "tasks": tasks, "sanity_tier": sanity_tier(),
+            "rerun": "hyst-gym benchmark --suite v2 " + {"full": "", "quick": "--quick", "reduced": "--reduced"}[
+                profile.name] + " --tasks TASK_ID",
+            "train_wall_s": train_s, "wall_s": time.time() - start}
+    stem = "suite_v2" if profile.name == "full" else f"suite_v2_{profile.name}"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"{stem}.json").write_text(json.dumps(data, indent=1))
+    text = markdown(data)
+    (out / f"{stem}.md").write_text(text)
+    figure(data, figure_path)
+    if docs is not None:
+        from experiments.report_markdown import update_readme
+
+        update_readme(docs, text + f"\n![suite v2](../figures/{figure_path.name})\n", area=DOCS_AREA)
+    log(f"[suite v2] wrote {out / f'{stem}.json'} in {data['wall_s'] / 60:.1f} min")
+    return data
+
+
+# ---------------------------------------------------------------------------- command line
+
+
+class UsageError(Exception):
+    pass
+
+
+def configure_parser(parser) -> None:
+    """The ``benchmark`` subcommand: v1's options, ``--suite v1|v2`` and v2's ``--reduced`` and ``--no-docs``."""
+    from experiments.suite_v1 import configure_parser as v1_parser
+
+    v1_parser(parser)
+    parser._option_string_actions["--suite"].help = "suite version: v1 (default, the sanity tier) or v2"
+    parser.add_argument("--reduced", action="store_true", help="v2 only: the reduced-budget measurement "
+                        "(24 draws, RL at small budgets, 3 seeds); writes suite_v2_reduced.*")
+    parser.add_argument("--no-docs", action="store_true", help="v2 only: do not rewrite the suite-v2 section of "
+                        "docs/results/suite.md (only the full profile writes it)")
+
+
+def _options(args):
+    from hyst_gym.envs.suite_v2 import TASKS_V2
+
+    if args.quick and args.reduced:
+        raise UsageError("--quick and --reduced exclude each other")
+    profile = PROFILES["quick" if args.quick else "reduced" if args.reduced else "full"]
+    task_ids = [t.strip() for t in args.tasks.split(",") if t.strip()] if args.tasks else list(TASKS_V2)
+    unknown = [t for t in task_ids if t not in TASKS_V2]
+    if unknown or not task_ids:
+        raise UsageError(f"--tasks: unknown v2 task id(s) {unknown or args.tasks!r}; expected some of {sorted(TASKS_V2)}")
+    stem = "suite_v2" if profile.name == "full" else f"suite_v2_{profile.name}"
+    figure_path = pathlib.Path(args.figure) if args.figure else FIGURES / f"{stem}.png"
+    docs = None if (args.no_docs or profile.name != "full") else DOCS_PAGE
+    return profile, task_ids, pathlib.Path(args.out), figure_path, docs
+
+
+def main(args) -> int:
+    if args.suite not in ("v1", "v2"):
+        print(f"hyst-gym benchmark: error: --suite: unknown suite version {args.suite!r}; expected 'v1' or 'v2'",
+              file=sys.stderr)
+        return 2
+    if args.suite == "v1":
+        if args.reduced or args.no_docs:
+            print("hyst-gym benchmark: error: --reduced and --no-docs are options of --suite v2", file=sys.stderr)
+            return 2
+        from experiments.suite_v1 import main as v1_main
+
+        return v1_main(args)
+    try:
+        profile, task_ids, out, figure_path, docs = _options(args)
+    except UsageError as error:
+        print(f"hyst-gym benchmark: error: {error}", file=sys.stderr)
+        return 2
+    run_suite(profile, task_ids, out, figure_path, docs=docs)
+    return 0
+
+
+if __name__ == "__main__":
+    _parser = argparse.ArgumentParser(prog="python -m experiments.suite_v2", description=__doc__.split("\n")[0])
+    configure_parser(_parser)
+    sys.exit(main(_parser.parse_args()))
