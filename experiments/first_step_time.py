@@ -4,7 +4,7 @@ Builds the wheel from this checkout, installs it (no extras) into a fresh virtua
 environment in a temporary folder, and runs, twice, a fresh interpreter that imports
 gymnasium, makes ``hyst_gym/Excitation-v0``, resets and steps once. The first run compiles
 the numba kernels (and says so on stderr); the second finds them in numba's on-disk cache.
-Writes the figures into the README's ``first-step`` section and prints them.
+Writes the figures into the ``first-step`` section of ``docs/speed.md`` and prints them.
 
     .venv/bin/python -m experiments.first_step_time [--no-readme]
 
@@ -67,7 +67,7 @@ def markdown(result: dict) -> str:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--no-readme", action="store_true", help="print only; leave README.md alone")
+    parser.add_argument("--no-readme", action="store_true", help="print only; leave docs/speed.md alone")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as folder:
         try:
@@ -81,7 +81,7 @@ def main(argv=None) -> int:
     if not args.no_readme:
         from experiments.report_markdown import update_readme
 
-        update_readme(ROOT / "README.md", text, area="first-step")
+        update_readme(ROOT / "docs" / "speed.md", text, area="first-step")
     return 0
 
 

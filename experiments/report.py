@@ -1,6 +1,6 @@
 """Regenerate every benchmark table and figure from the raw results.
 
-    python -m experiments.report [--results experiments/results] [--readme README.md]
+    python -m experiments.report [--results experiments/results] [--readme docs/results/benchmark.md]
 
 Reads ``raw/`` (see :mod:`experiments.run`) and writes
 
@@ -11,8 +11,8 @@ Reads ``raw/`` (see :mod:`experiments.run`) and writes
 * ``details.json`` -- targets, probabilities of improvement, success rates, sample
   efficiency, the history ablation, training budgets and compute;
 * ``RESULTS.md`` (beside ``results/``) -- the tables, target checks and compute;
-* PNG figures under ``figures/`` (and copies for the README in ``docs/figures/benchmark/``);
-* with ``--readme``, the README's ``benchmark`` section (between its markers only).
+* PNG figures under ``figures/`` (and copies for the documentation in ``docs/figures/benchmark/``);
+* with ``--readme``, the ``benchmark`` section of that page (between its markers only).
 
 The numbers are computed in :mod:`experiments.report_data`, drawn by
 :mod:`experiments.report_figures` and written out by :mod:`experiments.report_markdown`;
@@ -116,7 +116,7 @@ def write_report(results=DEFAULT_RESULTS, readme=None, n_boot=2000):
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m experiments.report", description=__doc__.splitlines()[0])
     parser.add_argument("--results", default=str(DEFAULT_RESULTS))
-    parser.add_argument("--readme", default=None, help="also update this README's benchmark section")
+    parser.add_argument("--readme", default=None, help="also update the benchmark section of this page (the project keeps it in docs/results/benchmark.md)")
     parser.add_argument("--n-boot", type=int, default=2000)
     args = parser.parse_args(argv)
     try:

@@ -226,7 +226,7 @@ def readme_section(tgt, summary, compute, ablation=None, budget_lines=(), floor=
              "field/slew limits and the same 50 held-out draws.", "",
              "```bash", ".venv/bin/python -m experiments.run --workers 2      # raw results -> experiments/results/raw",
              ".venv/bin/python -m experiments.settle_floor           # the convergence bound, checked on every agent",
-             ".venv/bin/python -m experiments.report --readme README.md  # tables, figures, summary.json, this section",
+             ".venv/bin/python -m experiments.report --readme docs/results/benchmark.md  # tables, figures, summary.json, this section",
              ".venv/bin/hyst-gym train --algo ppo --env hyst_gym/Excitation-v0 --timesteps 50000 --seed 0 --out runs/ppo0",
              ".venv/bin/hyst-gym train --algo ppo --reward information --timesteps 300000 --out runs/ppo_info0  "
              "# no truth in the reward",
@@ -264,7 +264,7 @@ def readme_section(tgt, summary, compute, ablation=None, budget_lines=(), floor=
                           ("learning_paper.png", "Learning curves"),
                           ("settle_floor.png", "The convergence floor: sensitivity, bound, and the agents' errors")):
         if (ROOT / "docs" / "figures" / "benchmark" / name).exists():
-            lines.append(f"![{caption}](docs/figures/benchmark/{name})")
+            lines.append(f"![{caption}](../figures/benchmark/{name})")  # from docs/results/
     return "\n".join(lines)
 
 

@@ -52,8 +52,8 @@ the best no-feedback baseline's IQM (1 = the oracle, 0 = the reference), with th
 runs (seeds) and the draws resampled together (stratified bootstrap).
 
 Writes ``experiments/results/suite_v1.json`` (``suite_v1_quick.json`` for ``--quick``),
-``suite_v1.md``, ``docs/figures/suite_v1.png`` and the README section ``suite-v1`` (full
-profile only).
+``suite_v1.md``, ``docs/figures/suite_v1.png`` and the section ``suite-v1`` of the documentation
+page ``docs/results/suite.md`` (full profile only).
 """
 
 from __future__ import annotations
@@ -72,7 +72,8 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "experiments" / "results"
 FIGURES = ROOT / "docs" / "figures"
 RAW = RESULTS / "raw" / "suite_v1"
-README = ROOT / "README.md"
+#: the documentation page whose ``suite-v1`` section the full run rewrites
+README = ROOT / "docs" / "results" / "suite.md"
 README_AREA = "suite-v1"
 HEADROOM_TARGET = 0.25
 #: wall seconds per timed case of the env speed measurement (hyst_gym.envs.benchmark)
@@ -718,7 +719,7 @@ def run_suite(profile: Profile, task_ids, out: pathlib.Path, figure_path: pathli
     if readme is not None:
         from experiments.report_markdown import update_readme
 
-        update_readme(readme, text + f"\n![suite v1](docs/figures/{figure_path.name})\n", area=README_AREA)
+        update_readme(readme, text + f"\n![suite v1](../figures/{figure_path.name})\n", area=README_AREA)
     log(f"[suite] wrote {out / f'{stem}.json'} in {data['wall_s'] / 60:.1f} min")
     return data
 
@@ -735,7 +736,7 @@ def configure_parser(parser) -> None:
                         "candidates; quick: the suite)")
     parser.add_argument("--out", default=str(RESULTS), help="folder of the JSON and markdown results")
     parser.add_argument("--figure", default=None, help="figure path (default docs/figures/suite_v1[_quick].png)")
-    parser.add_argument("--no-readme", action="store_true", help="do not rewrite the README's suite section")
+    parser.add_argument("--no-readme", action="store_true", help="do not rewrite the suite section of docs/results/suite.md")
 
 
 class UsageError(Exception):

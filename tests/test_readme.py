@@ -1,6 +1,6 @@
 """The README works as written.
 
-* Every ```python block of README.md (and of docs/*.md) runs, each in a fresh interpreter
+* Every ```python block of README.md (and of every page of the site, docs/**/*.md) runs, each in a fresh interpreter
   whose working directory is an empty temporary folder, so a snippet that leans on a
   name, a file or an import from elsewhere fails here.
 * Every ```bash block is parsed into its commands without running them: ``hyst-gym``
@@ -8,8 +8,9 @@
   required arguments), ``python -m MODULE --flag`` must name a module whose ``--help``
   lists the flag, scripts must exist, ``pip install`` lines must name this package's
   extras. An unknown command fails the test, so new blocks are checked too.
-* The README's speed paragraphs are the ones ``hyst-gym bench`` writes from docs/bench.md,
-  relative links resolve, and nothing points outside the repository.
+* The speed paragraphs (docs/speed.md) are the ones ``hyst-gym bench`` writes from docs/bench.md,
+  the README's leaderboard is the one ``experiments/readme_sections.py`` writes, the README is a
+  front door of at most 250 lines, relative links resolve, and nothing points outside the repository.
 """
 
 from __future__ import annotations
@@ -26,7 +27,9 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 README = REPO / "README.md"
-DOCS = sorted((REPO / "docs").glob("*.md"))
+DOCS = sorted((REPO / "docs").rglob("*.md"))
+#: the README is a front door; everything else is a page of the site (issue 24)
+README_MAX_LINES = 250
 FENCE = re.compile(r"^```([\w-]*)[^\n]*\n(.*?)^```[ \t]*$", re.M | re.S)
 #: languages of fenced blocks and what the test does with them
 RUN, CHECK, SHOW = "python", "bash", ("text", "json", "")
@@ -53,11 +56,11 @@ def _env():
 
 def test_readme_has_blocks_of_known_languages_only():
     blocks = fenced_blocks(README)
-    assert sum(lang == RUN for lang, _, _ in blocks) >= 6
-    assert sum(lang == CHECK for lang, _, _ in blocks) >= 4
+    assert sum(lang == RUN for lang, _, _ in blocks) >= 3   # an env with SB3, a suite task, a diagnosis
+    assert sum(lang == CHECK for lang, _, _ in blocks) >= 2
     for path in [README, *DOCS]:
         for lang, _, line in fenced_blocks(path):
-            assert lang in (RUN, CHECK, *SHOW), f"{path.name}:{line}: block of language {lang!r} is not checked"
+            assert lang in (RUN, CHECK, *SHOW), f"{path.relative_to(REPO)}:{line}: block of language {lang!r} is not checked"
     for lang, _, line in blocks:
         assert lang in (RUN, CHECK), f"README.md:{line}: every README block must be python or bash"
 
@@ -177,6 +180,12 @@ def check_command(argv, problems, hyst_gym_calls, where):
         _check_pip(argv[1:], problems, where)
     elif name == "hyst-gym":
         hyst_gym_calls.append((where, argv[1:]))
+    elif name == "mkdocs":
+        import importlib.util
+        if argv[1:2] not in (["serve"], ["build"]):
+            problems.append(f"{where}: mkdocs {argv[1:2]}: expected serve or build")
+        if importlib.util.find_spec("mkdocs") is None:
+            problems.append(f"{where}: mkdocs is not installed (the docs extra)")
     elif name == "tensorboard":
         if "--logdir" not in argv:
             problems.append(f"{where}: tensorboard without --logdir")
@@ -265,7 +274,18 @@ def test_quick_start_commands():
     assert "bash scripts/setup.sh && .venv/bin/python -m pytest -q" in text
 
 
+def _generated_pages() -> set:
+    """The pages docs/gen_pages.py writes at build time (they are not files in docs/)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("gen_pages", REPO / "docs" / "gen_pages.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return {(REPO / "docs" / page).resolve() for page in module.generated_pages()}
+
+
 def test_readme_points_only_inside_the_repository():
+    generated = _generated_pages()
     for path in [README, *DOCS]:
         text = path.read_text(encoding="utf-8")
         # no path that climbs out of the repository (a sibling checkout a user's clone does not have)
@@ -278,21 +298,41 @@ def test_readme_points_only_inside_the_repository():
             if re.match(r"^[a-z]+:", target) or target.startswith("#"):
                 continue
             resolved = (path.parent / target.split("#", 1)[0]).resolve()
-            assert resolved.exists(), f"{path.name}: broken link {target}"
+            assert resolved.exists() or resolved in generated, f"{path.name}: broken link {target}"
             assert REPO in resolved.parents or resolved == REPO, f"{path.name}: link {target} leaves the repository"
 
 
 def test_speed_figures_come_from_docs_bench():
-    """The README's speed paragraphs are exactly what ``hyst-gym bench --from docs/bench.md
-    --readme README.md`` writes: no hand-typed speed figures."""
+    """The speed page's paragraphs are exactly what ``hyst-gym bench --from docs/bench.md
+    --page docs/speed.md`` writes: no hand-typed speed figures."""
     from hyst_gym.bench import load, readme_sections
 
-    text = README.read_text(encoding="utf-8")
+    text = (REPO / "docs" / "speed.md").read_text(encoding="utf-8")
     sections = readme_sections(load(REPO / "docs" / "bench.md"))
     assert set(sections) == {"physics", "estimation", "envs"}
     for layer, body in sections.items():
         start, end = f"<!-- section:bench-{layer} -->", f"<!-- /section:bench-{layer} -->"
         assert text.count(start) == 1 and text.count(end) == 1, layer
         assert text.split(start)[1].split(end)[0].strip() == body.strip(), (
-            f"README speed section '{layer}' differs from docs/bench.md; run "
-            f"hyst-gym bench --from docs/bench.md --readme README.md")
+            f"docs/speed.md section '{layer}' differs from docs/bench.md; run "
+            f"hyst-gym bench --from docs/bench.md --page docs/speed.md")
+
+
+def test_readme_is_a_short_front_door():
+    lines = README.read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= README_MAX_LINES, f"README.md has {len(lines)} lines (at most {README_MAX_LINES})"
+
+
+def test_readme_leaderboard_is_the_scripts():
+    """The README's leaderboard is what ``python -m experiments.readme_sections`` renders from the
+    committed suite results, and it names every task that entered a suite."""
+    sys.path.insert(0, str(REPO))
+    from experiments.readme_sections import AREA, RESULTS, section
+
+    text = README.read_text(encoding="utf-8")
+    start, end = f"<!-- section:{AREA} -->", f"<!-- /section:{AREA} -->"
+    assert text.split(start)[1].split(end)[0].strip() == section().strip(), \
+        "README leaderboard differs from the results; run python -m experiments.readme_sections"
+    entered = [task for path in RESULTS.glob("suite_v[0-9].json")
+               for task, row in json.loads(path.read_text())["tasks"].items() if row.get("in_suite")]
+    assert entered and all(f"`{task}`" in section() for task in entered)
