@@ -105,9 +105,34 @@ class HystEnv(gym.Env):
 class ExcitationEnv(HystEnv):
     """``hyst_gym/Excitation-v0``: design the field; a built-in estimator estimates ``a``.
 
-    Action (1,): field command / field_limit in [-1, 1]; the applied field moves towards
-    it by at most ``slew_rate_limit*dt``. Reward: ``-|a_estimate - a_true|/width(Theta)``
-    minus constraint penalties.
+    **Description.** A Terfenol-D transducer (hysteresis model (6), plant set by
+    ``transducer``) whose coil temperature drifts and moves the material parameter ``a``
+    (eq. (4)). The agent chooses the applied field H(t); the built-in min-max estimator
+    (eq. (15)) identifies ``a`` from the measured output without the truth. The task is
+    the paper's input design: excite so that the estimate converges fast and stays on the
+    drifting truth.
+
+    **Action Space.** Box([-1], [1], (1,)): field command / ``field_limit``; the applied field
+    moves towards it by at most ``slew_rate_limit*dt`` (A/m) per step.
+
+    **Rewards.** Each step ``-|a_estimate - a_true|/width(Theta)`` minus
+    ``penalty_weight`` times the squared intrusions into the stroke band (10 % of
+    ``stroke_limit``) and the temperature band (5 K below ``temperature_limit``).
+
+    **Starting State.** The coil temperature is drawn uniformly from
+    ``initial_temperature_range`` (K; 278.15-298.15 by default) and sets the true ``a`` by eq. (4)
+    (``temperature_mode="fixed"`` holds it); the field and M start at 0 and the estimate at
+    ``initial_estimate`` (A/m). Reset options override the draw: ``initial_temperature`` (K),
+    ``ambient_drift_rate`` (K/s), ``a_true`` (A/m), ``a_estimate`` (A/m).
+
+    **Episode End.** *Terminated* when the coil passes ``temperature_limit`` (K) or the
+    output passes ``stroke_limit``; the step then also pays minus the steps left to the time
+    limit, so a violation never pays. *Truncated* after ``episode_steps`` steps (1000 by
+    default; a shorter ``max_episode_steps`` on request).
+
+    **Arguments.** ``gymnasium.make(id, **fields)`` with any field of
+    :class:`~hyst_gym.envs.EnvConfig` (frozen and validated, units in its docstring), or
+    ``config=EnvConfig(...)``; ``render_mode`` in {None, "rgb_array", "human"}.
     """
 
     mode = EXCITATION
@@ -116,7 +141,30 @@ class ExcitationEnv(HystEnv):
 class EstimationEnv(HystEnv):
     """``hyst_gym/Estimation-v0``: the field follows ``config.schedule``; the agent estimates.
 
-    Action (1,): estimate of ``a`` normalized to Theta: ``a = theta_min + (action+1)/2*width``.
+    **Description.** The transducer of ``Excitation-v0``, driven by a fixed schedule
+    (``schedule``: the paper's ramp, a sine, a chirp or a PRBS, through the same field and
+    slew limits); the agent is the estimator: it reads the outputs and reports ``a``.
+
+    **Action Space.** Box([-1], [1], (1,)): the estimate of ``a`` normalized to Theta,
+    ``a = theta_min + (action + 1)/2 * width(Theta)`` (A/m).
+
+    **Rewards.** Each step ``-|a_reported - a_true|/width(Theta)`` minus the constraint
+    penalties of ``Excitation-v0``.
+
+    **Starting State.** The coil temperature is drawn uniformly from
+    ``initial_temperature_range`` (K; 278.15-298.15 by default) and sets the true ``a`` by eq. (4)
+    (``temperature_mode="fixed"`` holds it); the field and M start at 0 and the estimate at
+    ``initial_estimate`` (A/m). Reset options override the draw: ``initial_temperature`` (K),
+    ``ambient_drift_rate`` (K/s), ``a_true`` (A/m), ``a_estimate`` (A/m).
+
+    **Episode End.** *Terminated* when the coil passes ``temperature_limit`` (K) or the
+    output passes ``stroke_limit``; the step then also pays minus the steps left to the time
+    limit, so a violation never pays. *Truncated* after ``episode_steps`` steps (1000 by
+    default; a shorter ``max_episode_steps`` on request).
+
+    **Arguments.** ``gymnasium.make(id, **fields)`` with any field of
+    :class:`~hyst_gym.envs.EnvConfig` (frozen and validated, units in its docstring), or
+    ``config=EnvConfig(...)``; ``render_mode`` in {None, "rgb_array", "human"}.
     """
 
     mode = ESTIMATION
@@ -125,7 +173,29 @@ class EstimationEnv(HystEnv):
 class IdentificationEnv(HystEnv):
     """``hyst_gym/Identification-v0``: the agent designs the field and estimates ``a``.
 
-    Action (2,): (field command / field_limit, estimate normalized to Theta).
+    **Description.** The transducer of ``Excitation-v0`` with no built-in estimator: the
+    agent both excites and identifies.
+
+    **Action Space.** Box([-1, -1], [1, 1], (2,)): (field command / ``field_limit``, estimate
+    of ``a`` normalized to Theta as in ``Estimation-v0``).
+
+    **Rewards.** Each step ``-|a_reported - a_true|/width(Theta)`` minus the constraint
+    penalties of ``Excitation-v0``.
+
+    **Starting State.** The coil temperature is drawn uniformly from
+    ``initial_temperature_range`` (K; 278.15-298.15 by default) and sets the true ``a`` by eq. (4)
+    (``temperature_mode="fixed"`` holds it); the field and M start at 0 and the estimate at
+    ``initial_estimate`` (A/m). Reset options override the draw: ``initial_temperature`` (K),
+    ``ambient_drift_rate`` (K/s), ``a_true`` (A/m), ``a_estimate`` (A/m).
+
+    **Episode End.** *Terminated* when the coil passes ``temperature_limit`` (K) or the
+    output passes ``stroke_limit``; the step then also pays minus the steps left to the time
+    limit, so a violation never pays. *Truncated* after ``episode_steps`` steps (1000 by
+    default; a shorter ``max_episode_steps`` on request).
+
+    **Arguments.** ``gymnasium.make(id, **fields)`` with any field of
+    :class:`~hyst_gym.envs.EnvConfig` (frozen and validated, units in its docstring), or
+    ``config=EnvConfig(...)``; ``render_mode`` in {None, "rgb_array", "human"}.
     """
 
     mode = IDENTIFICATION
