@@ -176,10 +176,13 @@ def van_trees_mse(setting: BoundSetting, table: SensitivityTable) -> np.ndarray:
     return 1.0 / (prior + information_ceiling(setting, table))
 
 
-def episode_floor(setting: BoundSetting, table: SensitivityTable) -> float:
-    """Floor on the RMS error over the episode and the prior, A/m: ``sqrt(mean_t bound_t)``; no agent's
-    ``sqrt(E[mean_t (a_hat_t - a_t)^2])`` can be lower (the overheat penalty only adds error)."""
-    return float(np.sqrt(np.mean(van_trees_mse(setting, table))))
+def episode_floor(setting: BoundSetting, table: SensitivityTable, first_step: int = 0) -> float:
+    """Floor on the RMS error over steps ``first_step + 1 .. steps`` and the prior, A/m:
+    ``sqrt(mean_t bound_t)``; no agent's ``sqrt(E[mean_t (a_hat_t - a_t)^2])`` over those steps can be
+    lower (the overheat penalty only adds error)."""
+    if not 0 <= first_step < setting.steps:
+        raise ValueError(f"episode_floor: first_step must be in [0, {setting.steps}), got {first_step!r}")
+    return float(np.sqrt(np.mean(van_trees_mse(setting, table)[first_step:])))
 
 
 __all__ = ["BoundSetting", "SensitivityTable", "episode_floor", "information_ceiling",
