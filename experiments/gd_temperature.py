@@ -656,7 +656,7 @@ def main(argv=None) -> int:
         if not args.quick and Path(args.data).resolve() == DEFAULT_DATA.resolve() and not args.predict:
             from experiments.report_markdown import update_readme
 
-            update_readme(ROOT / "README.md", summary_table(study, families), area="gd-summary")
+            update_readme(ROOT / "docs" / "results" / "real-loops.md", summary_table(study, families), area="gd-summary")
         held = holdouts[-1] if holdouts else temps[0]  # the held-out temperature nearest Tc
         if holdouts:
             make_figure(records, study, families, held, FIGURES_DIR / f"gd_temperature{suffix}.png")

@@ -417,7 +417,7 @@ def main(argv=None):
     (RESULTS / "real_loops.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
     from experiments.report_markdown import update_readme
 
-    update_readme(Path(__file__).resolve().parents[1] / "README.md", loops_table(summary, os.getloadavg()[0]),
+    update_readme(Path(__file__).resolve().parents[1] / "docs" / "results" / "real-loops.md", loops_table(summary, os.getloadavg()[0]),
                   area="real-loops-table")
     return 0
 

@@ -61,12 +61,12 @@ DOCS_AREA = "suite-v2"
 HEADROOM_TARGET = 0.25
 GAP_TARGET = 0.30  # the best RL agent must leave at least this fraction of the gap
 RL_ALGORITHMS = ("ppo", "sac", "recurrent_ppo")
-CURVE_POINTS = 5
 
 
 @dataclass(frozen=True)
 class Profile:
-    """How much of everything a run does."""
+    """How much of everything a run does. ``flat``: algo -> (factor, seeds, tasks or None = all): the
+    first ``seeds`` seeds of ``algo`` are also trained ``factor`` times longer (the flatness check)."""
 
     name: str
     heldout: int
@@ -75,19 +75,19 @@ class Profile:
     fisher_evaluations: int
     rl_seeds: int
     rl_steps: dict          # algo -> env steps per seed
-    flat_factor: int        # seed 0..flat_seeds-1 of PPO also trained this many times longer (0: not)
-    flat_seeds: int
+    flat: dict
     bootstrap: int
     train: bool
 
 
+#: the budgets trained in this session (the quick profile evaluates the models they left)
+SESSION_STEPS = {"ppo": 50_000, "sac": 5_000, "recurrent_ppo": 15_000}
+SESSION_FLAT = {"ppo": (3, 1, None), "sac": (3, 1, None), "recurrent_ppo": (3, 1, None)}
 PROFILES = {
-    "full": Profile("full", 50, 10, 240, 200, 10, {"ppo": 100_000, "sac": 6_000, "recurrent_ppo": 100_000}, 3, 10,
-                    2000, True),
-    "reduced": Profile("reduced", 24, 10, 40, 40, 3, {"ppo": 30_000, "sac": 3_000, "recurrent_ppo": 15_000}, 3, 2,
-                       1000, True),
-    "quick": Profile("quick", 16, 10, 12, 20, 3, {"ppo": 30_000, "sac": 3_000, "recurrent_ppo": 15_000}, 3, 2, 300,
-                     False),
+    "full": Profile("full", 50, 10, 240, 200, 10, {"ppo": 100_000, "sac": 15_000, "recurrent_ppo": 100_000},
+                    {"ppo": (3, 10, None), "sac": (3, 10, None), "recurrent_ppo": (3, 10, None)}, 2000, True),
+    "reduced": Profile("reduced", 24, 10, 40, 40, 3, SESSION_STEPS, SESSION_FLAT, 1000, True),
+    "quick": Profile("quick", 16, 10, 12, 20, 3, SESSION_STEPS, SESSION_FLAT, 300, False),
 }
 
 
@@ -352,23 +352,29 @@ def train_one(task_id: str, algo: str, seed: int, steps: int, raw: pathlib.Path 
     start = time.time()
     config = task_config(task_id)
     train(algo, EpisodeSpec(task_id, {}, config.dt), int(steps), int(seed), out, n_envs=8,
-          checkpoint_every=max(int(steps) // CURVE_POINTS, 1), progress=False, scenario=task_id.split("/")[-1])
+          checkpoint_every=int(steps), progress=False, scenario=task_id.split("/")[-1])
     log(f"[suite v2] trained {task_id} {algo} seed {seed} x {steps:,} steps in {time.time() - start:.0f} s")
 
 
-def rl_runs(profile: Profile):
-    """(algo, seed, steps) of a profile: every algorithm at its budget, and PPO at flat_factor x its budget
-    on the first flat_seeds seeds (the flatness check)."""
+def rl_runs(profile: Profile, task_id: str):
+    """(algo, seed, steps) of a profile on a task: every algorithm at its budget, and the flatness runs."""
     runs = [(algo, seed, steps) for seed in range(profile.rl_seeds) for algo, steps in profile.rl_steps.items()]
-    if profile.flat_factor:
-        runs += [("ppo", seed, profile.rl_steps["ppo"] * profile.flat_factor) for seed in range(profile.flat_seeds)]
+    for algo, (factor, seeds, tasks) in profile.flat.items():
+        if tasks is None or task_id in tasks:
+            runs += [(algo, seed, profile.rl_steps[algo] * factor) for seed in range(seeds)]
     return runs
 
 
-def train_all(task_ids, profile: Profile, raw: pathlib.Path = RAW, log=print):
-    for algo, seed, steps in rl_runs(profile):
-        for task_id in task_ids:
-            train_one(task_id, algo, seed, steps, raw, log)
+def train_all(task_ids, profile: Profile, raw: pathlib.Path = RAW, log=print, worker: int = 0, workers: int = 1):
+    """Every run of every task (cheapest first); ``worker`` of ``workers`` takes every workers-th run."""
+    jobs = sorted(((steps * STEP_COST[algo], task_id, algo, seed, steps) for task_id in task_ids
+                   for algo, seed, steps in rl_runs(profile, task_id)))
+    for _, task_id, algo, seed, steps in jobs[worker::workers]:
+        train_one(task_id, algo, seed, steps, raw, log)
+
+
+#: rough wall seconds per env step of each algorithm's training (to order the jobs)
+STEP_COST = {"ppo": 2e-4, "sac": 6e-3, "recurrent_ppo": 4e-3}
 
 
 def rl_agents(task_id: str, profile: Profile, heldout, raw: pathlib.Path = RAW):
@@ -376,7 +382,7 @@ def rl_agents(task_id: str, profile: Profile, heldout, raw: pathlib.Path = RAW):
     from baselines.rl import PolicyAgent
 
     found, record = {}, {}
-    budgets = {(algo, steps) for algo, _, steps in rl_runs(profile)}
+    budgets = {(algo, steps) for algo, _, steps in rl_runs(profile, task_id)}
     for algo, steps in sorted(budgets):
         folders = [model_dir(task_id, algo, seed, steps, raw) for seed in range(profile.rl_seeds)]
         folders = [f for f in folders if (f / "model.zip").exists()]
@@ -659,8 +665,9 @@ def run_suite(profile: Profile, task_ids, out: pathlib.Path, figure_path: pathli
             "settings": asdict(profile),
             "rl_budget": ", ".join(f"{algo} {steps:,} env steps x {profile.rl_seeds} seeds"
                                    for algo, steps in profile.rl_steps.items())
-                         + (f"; PPO x{profile.flat_factor} on {profile.flat_seeds} seeds (flatness check)"
-                            if profile.flat_factor else ""),
+                         + "; flatness check: " + ", ".join(
+                             f"{algo} x{factor} on {seeds} seed(s) ({'all tasks' if tasks is None else ', '.join(tasks)})"
+                             for algo, (factor, seeds, tasks) in profile.flat.items()),
             "targets": {"headroom": HEADROOM_TARGET, "rl_gap_left": GAP_TARGET, "speed_steps_per_s": SPEED_TARGETS},
             "tasks": tasks, "sanity_tier": sanity_tier(),
             "rerun": "hyst-gym benchmark --suite v2 " + {"full": "", "quick": "--quick", "reduced": "--reduced"}[
