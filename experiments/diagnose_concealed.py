@@ -53,11 +53,19 @@ FIELDS = ["generator", "channels", "effect", "in_vocabulary", "seed", "verdict",
 BINS = (0.0, 0.2, 0.5, 0.8, 0.9, 1.0001)
 
 
+def expected_name(effect: str) -> str:
+    """The verdict that names ``effect``: its own name, or the tool family that holds it
+    (:data:`experiments.independent_recordings.TOOL_NAMES`)."""
+    from experiments.independent_recordings import TOOL_NAMES
+
+    return TOOL_NAMES.get(effect, effect)
+
+
 def independent_effects():
     """(inside, outside) the tool's vocabulary, judged by the tool's own EFFECTS list."""
     from experiments.independent_recordings import ALL_EFFECTS
 
-    inside = tuple(e for e in ALL_EFFECTS if e in EFFECTS or e == "none")
+    inside = tuple(e for e in ALL_EFFECTS if expected_name(e) in EFFECTS or e == "none")
     return inside, tuple(e for e in ALL_EFFECTS if e not in inside)
 
 
@@ -107,10 +115,10 @@ def outcome(effect, in_vocabulary, verdict, tied):
         if verdict in ("unexplained", "ambiguous"):
             return "right"
         return "missed" if verdict == "none" else "wrong_name"
-    if verdict == effect:
+    if verdict == expected_name(effect):
         return "right"
     if verdict == "ambiguous":
-        return "ambiguous_with_truth" if effect in tied else "ambiguous_without_truth"
+        return "ambiguous_with_truth" if expected_name(effect) in tied else "ambiguous_without_truth"
     if verdict == "unexplained":
         return "unexplained"
     return "missed" if verdict == "none" else "wrong_name"
@@ -123,7 +131,7 @@ def run_one(job):
     report = diagnose(recording, progress=False)
     seconds = time.perf_counter() - started
     tied = [c.effect for c in report.tied] if report.verdict == "ambiguous" else []
-    true = next((c for c in report.candidates if c.effect == effect), None)
+    true = next((c for c in report.candidates if c.effect == expected_name(effect)), None)
     return {"generator": generator, "channels": channels, "effect": effect, "in_vocabulary": in_vocabulary,
             "seed": seed, "verdict": report.verdict, "tied": ";".join(tied), "confidence": report.confidence,
             "outcome": outcome(effect, in_vocabulary, report.verdict, tied),

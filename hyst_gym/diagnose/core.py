@@ -19,20 +19,24 @@ from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
 from . import locate
-from .decide import (ACCEPT_DELTA_BIC, ACCEPT_IMPROVEMENT, EXPLAINED_RMSE, Plausibility, check_plausibility,
-                     decide)
+from .decide import (ACCEPT_DELTA_BIC, ACCEPT_IMPROVEMENT, EXPLAINED_RMSE, MATERIAL_SHARE, Plausibility,
+                     check_plausibility, decide)
 from .fit import BASE_FIT_TOLERANCE, FitResult, Objective, _solve_linear_outputs, global_search, local_fit
-from .identifiability import RATE_EFFECTS, channel_set, invisible_effects
-from .model import (EFFECT_PARAMETERS, MECHANICS_TOLERANCE, Model, Structure, applicable_effects,
+from .identifiability import (RATE_EFFECTS, channel_set, describe_direction, invisible_effects,
+                              unidentified_directions)
+from .model import (EFFECT_PARAMETERS, EFFECT_SLOTS, MECHANICS_TOLERANCE, Model, Structure, applicable_effects,
                     base_parameters, extension_parameters, noise_level, slope_factor)
 from .recording import Recording, read_recording
 # physical_params lives in report (which explain needs); core re-exports it for its callers
 from .report import explain, physical_params
 
 HYSTERESIS_NAMES = ["a", "k", "rho", "Ms", "c"]
-#: Base-model parameters that carry a prior (nominal x/÷ tolerance); one at its bound means the
-#: base model is bending its mechanics to absorb something.
+#: Base-model parameters that carry a prior (nominal x/÷ tolerance). One at its bound means the base
+#: model bends its mechanics to absorb something only if releasing it improves the held-out fit
+#: materially (:func:`release_prior`): a bound binds, or the record does not determine the parameter.
 PRIOR_PARAMETERS = ("khat", "chat")
+#: Factor from nominal to which :func:`release_prior` widens a pinned prior.
+RELEASED_TOLERANCE = 10.0
 
 
 @dataclass
@@ -46,7 +50,7 @@ class Candidate:
     plausibility: Plausibility = dataclass_field(default_factory=Plausibility)
     #: normalized residual on the held-out block (channels concatenated), for the tie test
     heldout_residual: np.ndarray | None = dataclass_field(default=None, repr=False)
-    #: its mechanics ran into their prior (like the base model's, :func:`_prior_notes`)
+    #: its mechanics ran into their prior (like the base model's, :func:`_pinned_priors`)
     mechanics_pinned: bool = False
 
     def to_json(self) -> dict:
@@ -80,6 +84,15 @@ class Report:
     advice: str = ""
     notes: list = dataclass_field(default_factory=list)
     skipped: dict = dataclass_field(default_factory=dict)
+    #: structured part of the base model's held-out residual (:func:`.locate.structured_power`)
+    material_structure: dict = dataclass_field(default_factory=dict)
+    #: pinned priors and whether they bind; directions the record leaves open
+    identifiability: dict = dataclass_field(default_factory=dict)
+
+    @property
+    def slot(self) -> str | None:
+        """The slot of the model chain the verdict fills, in an engineer's words (None unless an effect)."""
+        return EFFECT_SLOTS.get(self.verdict)
 
     def to_json(self) -> dict:
         items = []
@@ -88,7 +101,9 @@ class Report:
             item["delta_bic"] = c.bic - self.baseline.bic
             items.append(item)
         return {
-            "source": self.source, "verdict": self.verdict, "confidence": self.confidence,
+            "source": self.source, "verdict": self.verdict, "slot": self.slot,
+            "slots_tied": [EFFECT_SLOTS[c.effect] for c in self.tied] if self.verdict == "ambiguous" else [],
+            "confidence": self.confidence,
             "confidence_means": "margin of the verdict over its nearest alternative, as a share of the held-out "
                                 "reduction (0-1; not a probability: see the reliability table in the README)",
             "channel_set": channel_set(self.baseline.model.recording.channels),
@@ -103,6 +118,7 @@ class Report:
             "heldout_rmse_units": "noise units (residual / channel noise level); 1 = explained to within noise",
             "heldout_rmse_by_channel": self.heldout_by_channel, "noise_level": self.noise,
             "split": {"fit_samples": self.split_index, "heldout_from_time_s": None},
+            "material_structure": self.material_structure, "identifiability": self.identifiability,
             "seconds": self.seconds,
         }
 
@@ -251,9 +267,9 @@ RESCUE_RMSE = 3.0
 #: Effects whose rescue searches the hysteresis parameters together with these of the effect
 #: (anhysteretic_shape and small_loop already search globally; thermal_drift's time constant and the
 #: rod mode's damping are search ranges, not physics, and stay at the local fit's values).
-RESCUED_EFFECTS = {"field_bias": ("H0",), "quadratic_magnetostriction": (), "delta_e": ("delta_e",),
+RESCUED_EFFECTS = {"field_bias": ("H0",), "quadratic_magnetostriction": (), "delta_e": ("delta_e", "delta_e_linear"),
                    "eddy_current": ("k_e",), "thermal_drift": ("heating",), "rod_dynamics": ("f2",),
-                   "sensor_lag": ()}
+                   "sensor_lag": (), "input_map": ("input_saturation", "input_cubic"), "sensor_map": ()}
 
 
 def _rescue(model, effect, local, weights, fit_mask):
@@ -331,6 +347,9 @@ def _effect_starts(model, effect, base_values):
         return [dict(start, heating=p["heating"].upper * 0.05, tau_th=p["tau_th"].value)]
     if effect == "small_loop":
         return [dict(start, chi_r=p["chi_r"].upper * f) for f in (0.02, 0.2)]
+    if effect == "input_map":
+        # from the identity and from a moderate saturation (gain at the peak field 0.7 of the small-signal one)
+        return [start, dict(start, input_saturation=1.0)]
     return [start]
 
 
@@ -377,18 +396,51 @@ def _effects_to_try(recording, structure, effects):
     return chosen, skipped
 
 
-def _prior_notes(base: FitResult) -> list:
-    notes = []
+def _pinned_priors(fit: FitResult) -> list:
+    """Names of ``PRIOR_PARAMETERS`` that sit at their tolerance in ``fit``."""
+    pinned = []
     for name in PRIOR_PARAMETERS:
-        p = base.model.parameters.get(name)
-        if p is None or not p.free:
-            continue
-        value = base.values[name]
-        if value <= p.lower * 1.001 or value >= p.upper * 0.999:
-            nominal = np.sqrt(p.lower * p.upper)
-            notes.append(f"the base model's {name} = {value:.4g} is pinned at its tolerance "
-                         f"({nominal:.4g} x/÷ {np.sqrt(p.upper / p.lower):.3g}): the base model bends its "
-                         "mechanics to absorb something")
+        p = fit.model.parameters.get(name)
+        if p is not None and p.free and (fit.values[name] <= p.lower * 1.001 or fit.values[name] >= p.upper * 0.999):
+            pinned.append(name)
+    return pinned
+
+
+def release_prior(base: FitResult, pinned, weights, fit_mask, held_mask, base_heldout) -> dict:
+    """Refit the base model with the ``pinned`` priors widened to ``RELEASED_TOLERANCE`` of nominal.
+
+    The prior binds when the released fit lowers the held-out mean square by at least
+    ``MATERIAL_SHARE`` (noise units squared); otherwise the record does not determine the pinned
+    parameters, and their sitting at the bound says nothing about missing physics (issue 22)."""
+    params = dict(base.model.parameters)
+    for name in pinned:
+        p = params[name]
+        nominal = float(np.sqrt(p.lower * p.upper))
+        params[name] = replace(p, lower=nominal / RELEASED_TOLERANCE, upper=nominal * RELEASED_TOLERANCE)
+    model = Model(base.model.recording, base.model.structure, params, base.model.max_field_step)
+    released = local_fit(model, weights, fit_mask, base.values, max_nfev=60, tolerance=BASE_FIT_TOLERANCE)
+    heldout = _rmse(model, released.values, weights, held_mask)[0]
+    gain = base_heldout ** 2 - heldout ** 2
+    return {"pinned": {n: base.values[n] for n in pinned}, "released_values": {n: released.values[n] for n in pinned},
+            "released_heldout_rmse": heldout, "heldout_mean_square_gain": gain, "binds": bool(gain >= MATERIAL_SHARE)}
+
+
+def _prior_notes(base: FitResult, release: dict) -> list:
+    """What the pinned priors mean, after :func:`release_prior`."""
+    notes = []
+    for name, value in release.get("pinned", {}).items():
+        p = base.model.parameters[name]
+        nominal = np.sqrt(p.lower * p.upper)
+        head = (f"the base model's {name} = {value:.4g} is pinned at its tolerance ({nominal:.4g} x/÷ "
+                f"{np.sqrt(p.upper / p.lower):.3g})")
+        if release["binds"]:
+            notes.append(f"{head}, and releasing it lowers the held-out mean square by "
+                         f"{release['heldout_mean_square_gain']:.2f} noise units^2 (material): the base model bends "
+                         "its mechanics to absorb something")
+        else:
+            notes.append(f"{head}, but releasing it changes the held-out mean square by only "
+                         f"{release['heldout_mean_square_gain']:+.2f} noise units^2 (material from "
+                         f"{MATERIAL_SHARE:.2f}): the record does not determine {name}; the bound absorbs nothing")
     return notes
 
 
@@ -428,16 +480,26 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
     for candidate in candidates:
         if candidate.accepted:
             candidate.plausibility = check_plausibility(candidate, weights)
-    prior_notes = _prior_notes(base)
-    if prior_notes:
+    pinned = _pinned_priors(base)
+    release = release_prior(base, pinned, weights, fit_mask, held_mask, base_heldout) if pinned else {}
+    mechanics_pinned = bool(release.get("binds"))
+    prior_notes = _prior_notes(base, release)
+    if mechanics_pinned:
         # a candidate that frees the mechanics is evidence too (decide.freeing_candidates)
         for candidate in candidates:
-            candidate.mechanics_pinned = bool(_prior_notes(candidate.fit))
+            candidate.mechanics_pinned = bool(_pinned_priors(candidate.fit))
             if not candidate.accepted and not candidate.mechanics_pinned and candidate.heldout_rmse <= EXPLAINED_RMSE:
                 candidate.plausibility = check_plausibility(candidate, weights)
     base_residual = _residual(base.model, base.values, weights, held_mask)[2]
-    decision = decide(candidates, base_heldout, recording.channels, mechanics_pinned=bool(prior_notes),
-                      base_whiteness=locate.whiteness(base_residual), base_residual=base_residual)
+    structure_left = locate.structured_power(base_residual)
+    structure_left.update(material_share=MATERIAL_SHARE, material=bool(structure_left["share"] >= MATERIAL_SHARE),
+                          where=located["summary"])
+    decision = decide(candidates, base_heldout, recording.channels, mechanics_pinned=mechanics_pinned,
+                      base_structure=structure_left, base_residual=base_residual)
+    directions = unidentified_directions(base, weights, fit_mask)
+    if directions:
+        prior_notes.append("the record does not determine " + "; ".join(
+            f"{describe_direction(d)}: to identify it, {d['measurement']}" for d in directions))
     notes = decision.notes + prior_notes
     verdict = decision.verdict
     bar.update(1)
@@ -452,7 +514,8 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
                     improvement=float(chosen.improvement) if chosen else 0.0, structure=structure,
                     split_index=cut, noise=weights, seconds=0.0, chosen=chosen,
                     heldout_by_channel=heldout_by_channel, tied=decision.tied, advice=decision.advice,
-                    notes=notes, skipped=skipped)
+                    notes=notes, skipped=skipped, material_structure=structure_left,
+                    identifiability={"priors": release, "unidentified": directions})
     report.explanation = explain(report)
     report.seconds = _time.perf_counter() - started
     return report

@@ -12,7 +12,10 @@ An accepted candidate is then *plausible* only if
    a vocabulary effect that stands in for something outside the vocabulary is pulled to
    different values by the different excitation in each block;
 3. a bias field shows in the data: ``field_bias`` is rejected when its H0 is much larger than
-   the horizontal offset of the recorded loop itself.
+   the horizontal offset of the recorded loop itself;
+4. a static map is monotone: an ``input_map`` or ``sensor_map`` whose output falls as its input
+   rises somewhere in the recorded range is no amplifier or sensor, but a polynomial bent to
+   mimic something else.
 
 Verdicts:
 
@@ -24,9 +27,23 @@ Verdicts:
   them and names the measurement that would separate them;
 * ``unexplained`` -- the base model misses by more than ``UNEXPLAINED_RMSE`` noise units and
   no plausible candidate explains most of it; the report says where the residual lives;
-* ``none`` -- the base model predicts the held-out block to within noise, and its held-out
-  residual is white (Ljung-Box, ``WHITENESS_P``); a residual within the noise level but with
-  structure in time is ``unexplained``.
+* ``none`` -- the base model predicts the held-out block to within noise and nothing *material*
+  is left: the structured part of its held-out residual
+  (:func:`hyst_gym.diagnose.locate.structured_power`) is below ``MATERIAL_SHARE`` of the noise
+  power. A residual within the noise level whose structured part reaches that share is
+  ``unexplained``. The report quantifies the structure either way (its share, interval and where
+  it lives).
+
+Materiality, not significance (issue 22). Every bar is an effect size in noise units: the
+held-out RMSE (``UNEXPLAINED_RMSE``, ``EXPLAINED_RMSE``), its reduction (``ACCEPT_IMPROVEMENT``,
+``NAMING_IMPROVEMENT``) and the structured share (``MATERIAL_SHARE``). A p-value of a whiteness
+test shrinks with the record length: with thousands of held-out samples, the 1-10 % of the noise
+power by which two correct simulators differ (integration scheme, input hold) is "significant"
+and turned ``none`` into ``unexplained``. ``MATERIAL_SHARE = 0.25`` is a systematic error of half
+the noise RMS: below it the held-out RMSE is raised by less than 12 %, under the 20 %
+(``ACCEPT_IMPROVEMENT``) that any candidate must remove to be accepted, so no explanation of
+such a structure could ever be accepted on this record; the bar was fixed from that argument,
+before the studies were rerun.
 
 ``confidence`` (0-1) is the verdict's margin over the nearest *other* verdict it could have
 been, each margin scaled to 0 at the bar that separates the two and 1 far from it:
@@ -44,9 +61,9 @@ been, each margin scaled to 0 at the bar that separates the two and 1 far from i
   into its own parameters within noise (in the concealed study it did so for most
   out-of-vocabulary effects), so ``none`` never reaches the confidence of a positive finding.
   0.5 flat when the base model explains the record only with its mechanics pinned at their
-  prior (the verdict is then ``unexplained``); for a residual within the noise level but not
-  white (``unexplained``), 0.5 times how many decades its Ljung-Box p-value lies below
-  ``WHITENESS_P``, over 6.
+  prior and releasing it improves the held-out fit materially (the verdict is then
+  ``unexplained``); for a material structure within the noise level (``unexplained``), 0.5 times
+  how far its share lies above ``MATERIAL_SHARE``, relative to the bar.
 
 It is a margin, not a probability; how often verdicts at each confidence are right is
 measured in ``experiments/diagnose_concealed.py`` (its reliability table).
@@ -61,7 +78,7 @@ import numpy as np
 
 from .fit import local_fit
 from .identifiability import separating_measurement
-from .model import EFFECT_PARAMETERS, Model
+from .model import EFFECT_PARAMETERS, SENSOR_MAP_NAMES, Model
 
 ACCEPT_IMPROVEMENT = 0.20
 ACCEPT_DELTA_BIC = 10.0
@@ -76,11 +93,8 @@ NAMING_IMPROVEMENT = 0.5
 TIE_Z = 2.0
 #: Contiguous blocks of the held-out residual whose means give that standard error.
 TIE_BLOCKS = 20
-#: A base model within the noise level whose held-out residual fails the Ljung-Box whiteness test at
-#: this p-value is not ``none``: on five ``none`` recordings of the concealed study's two generators
-#: the white residuals gave Q of 17-30 over 20 lags (p >= 0.07); effects the base model absorbs into
-#: its RMSE but not into the shape of its residual gave Q in the hundreds or thousands.
-WHITENESS_P = 1e-6
+#: Structured share of the noise power above which what a model leaves is material (module docstring).
+MATERIAL_SHARE = 0.25
 #: Independent time blocks for the consistency check.
 BLOCKS = 3
 #: Block estimates of the main parameter agree when they lie within this relative spread...
@@ -88,11 +102,13 @@ CONSISTENCY_SPREAD = 0.5
 #: ...or within this many of their own standard errors of each other.
 CONSISTENCY_SIGMAS = 3.0
 #: Parameters whose bounds are search ranges rather than physical walls (a fit may end there).
-SEARCH_RANGES_ONLY = ("tau_th", "g2", "damping2")
+SEARCH_RANGES_ONLY = ("tau_th", "g2", "damping2", "input_saturation")
 #: The parameter each effect is identified by (refitted per block).
 MAIN_PARAMETER = {"field_bias": "H0", "eddy_current": "k_e", "thermal_drift": "heating",
                   "quadratic_magnetostriction": "zeta_q", "rod_dynamics": "f2", "delta_e": "delta_e",
                   "small_loop": "chi_r"}
+# input_map and sensor_map have no single main parameter (their shape is spread over two or three
+# coefficients that trade off): the held-out block judges them, and the shape is plotted.
 
 
 @dataclass
@@ -134,6 +150,11 @@ def check_plausibility(candidate, weights, blocks: int = BLOCKS) -> Plausibility
         if not consistent(values, sigmas):
             out.reject(f"{main} disagrees across {blocks} time blocks of the record "
                        f"({', '.join(f'{v:.3g}' for v in values)}): one physical effect would give one value")
+    if candidate.effect in ("input_map", "sensor_map"):
+        for what, slope in static_map_slopes(candidate.effect, fit.values, model.channels):
+            if np.min(slope) <= 0.0:
+                out.reject(f"the fitted {what} is not monotone over the recorded range (slope down to "
+                           f"{np.min(slope):.2g}): no amplifier or sensor reads that way")
     if candidate.effect == "field_bias":
         visible = visible_loop_offset(model.recording)
         bias = fit.values["H0"]
@@ -141,6 +162,23 @@ def check_plausibility(candidate, weights, blocks: int = BLOCKS) -> Plausibility
         if visible is not None and abs(bias) > 3.0 * abs(visible) + 0.01 * h_max:
             out.reject(f"a bias field of {bias:.3g} A/m would shift the recorded loop, but the loop is centred "
                        f"within {abs(visible):.2g} A/m")
+    return out
+
+
+def static_map_slopes(effect, values, channels, points: int = 201):
+    """``[(what, slope over the normalized input -1..1)]`` of an ``input_map`` (its derivative
+    relative to the small-signal gain) or of each channel's ``sensor_map``."""
+    u = np.linspace(-1.0, 1.0, points)
+    if effect == "input_map":
+        q, c, s = (values[n] for n in EFFECT_PARAMETERS["input_map"])
+        root = np.sqrt(1.0 + s * u ** 2)
+        # d/du [u*(1 + q*u + c*u^2)/sqrt(1 + s*u^2)]
+        slope = (1.0 + 2 * q * u + 3 * c * u ** 2) / root - s * u ** 2 * (1.0 + q * u + c * u ** 2) / root ** 3
+        return [("input map", slope)]
+    out = []
+    for channel in channels:
+        q2, q3 = (values[n] for n in SENSOR_MAP_NAMES[channel])
+        out.append((f"{channel} sensor map", 1.0 + 2 * q2 * u + 3 * q3 * u ** 2))
     return out
 
 
@@ -248,14 +286,15 @@ def freeing_candidates(candidates, base_residual) -> list:
     return sorted(freed, key=lambda c: c.heldout_rmse)
 
 
-def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False, base_whiteness=None,
+def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False, base_structure=None,
            base_residual=None) -> Decision:
     """The verdict from fitted, accepted and plausibility-checked candidates (module docstring).
 
-    ``mechanics_pinned``: the base model's mechanics ran into their prior; a base model that
-    then explains the record is not trusted to mean ``none``. ``base_whiteness``: the Ljung-Box
-    test of the base model's held-out residual (:func:`hyst_gym.diagnose.locate.whiteness`); a
-    residual within the noise level but not white is not ``none`` either. ``base_residual``: the
+    ``mechanics_pinned``: the base model's mechanics ran into their prior *and* releasing them
+    improves the held-out fit materially; a base model that then explains the record is not
+    trusted to mean ``none``. ``base_structure``: the structured power of the base model's
+    held-out residual (:func:`hyst_gym.diagnose.locate.structured_power`); a material share is not
+    ``none`` either. ``base_residual``: the
     base model's held-out residual; with ``mechanics_pinned``, a candidate that explains the record
     as well with its mechanics inside their prior (:func:`freeing_candidates`) is named, at
     confidence ``NONE_CONFIDENCE_CEILING``."""
@@ -305,21 +344,23 @@ def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False, b
     # margins to accepting the best candidate and to 'unexplained'
     confidence = min(1.0 - best_improvement / ACCEPT_IMPROVEMENT,
                      (UNEXPLAINED_RMSE - base_heldout) / (UNEXPLAINED_RMSE - 1.0))
-    if base_whiteness is not None and base_whiteness["p_value"] < WHITENESS_P:
-        # within the noise level, yet the residual has structure in time: something is left out
-        notes.append(f"the base model is within {base_heldout:.2f} noise units of the held-out block, but its "
-                     f"residual is not white (Ljung-Box Q = {base_whiteness['ljung_box_q']:.0f} over "
-                     f"{base_whiteness['lags']} lags, p = {base_whiteness['p_value']:.1g}): the model leaves "
-                     "out something that no candidate explains")
-        # margin to 'none': how far p lies below the bar, in decades (6 decades = the full margin)
-        decades = np.log10(WHITENESS_P / max(base_whiteness["p_value"], 1e-300))
-        confidence = NONE_CONFIDENCE_CEILING * float(np.clip(decades / 6.0, 0.0, 1.0))
-        return Decision("unexplained", confidence, notes=notes)
+    if base_structure is not None and base_structure["share"] >= MATERIAL_SHARE:
+        # within the noise level, yet a material share of the residual is predictable: something is left out
+        lo, hi = base_structure["ci95"]
+        notes.append(f"the base model is within {base_heldout:.2f} noise units of the held-out block, but "
+                     f"{100 * base_structure['share']:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}] of the noise power in its "
+                     f"residual is structured (material from {100 * MATERIAL_SHARE:.0f} %): the model leaves out "
+                     "something that no candidate explains")
+        margin = (base_structure["share"] - MATERIAL_SHARE) / MATERIAL_SHARE
+        return Decision("unexplained", NONE_CONFIDENCE_CEILING * float(np.clip(margin, 0.0, 1.0)), notes=notes)
+    if base_structure is not None:
+        confidence = min(confidence, (MATERIAL_SHARE - base_structure["share"]) / MATERIAL_SHARE)
     if mechanics_pinned:
         # the data alone would say 'none'; the stated mechanics say otherwise: an even call
         return Decision("unexplained", 0.5, notes=notes)
     return Decision("none", NONE_CONFIDENCE_CEILING * float(np.clip(confidence, 0.0, 1.0)), notes=notes)
 
 
-__all__ = ["ACCEPT_DELTA_BIC", "ACCEPT_IMPROVEMENT", "Decision", "EXPLAINED_RMSE", "NONE_CONFIDENCE_CEILING", "Plausibility",
+__all__ = ["ACCEPT_DELTA_BIC", "ACCEPT_IMPROVEMENT", "Decision", "EXPLAINED_RMSE", "MATERIAL_SHARE",
+           "NONE_CONFIDENCE_CEILING", "Plausibility",
            "UNEXPLAINED_RMSE", "check_plausibility", "consistent", "decide", "visible_loop_offset"]

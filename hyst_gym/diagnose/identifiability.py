@@ -19,6 +19,8 @@ an ``ambiguous`` verdict; it never uses it to pick a winner.
 
 from __future__ import annotations
 
+import numpy as np
+
 CHANNEL_SETS = ("magnetization", "displacement", "both")
 
 #: Effects that act on the displacement path only (invisible in a magnetization-only record).
@@ -99,3 +101,76 @@ def invisible_effects(channels) -> tuple:
 
 __all__ = ["CHANNEL_SETS", "CONFUSABLE", "MECHANICAL_EFFECTS", "RATE_EFFECTS", "channel_set",
            "invisible_effects", "separating_measurement"]
+
+
+# ---------------------------------------------------------------------------- the base fit
+
+
+#: A direction of the fitted parameters is unidentified when its 1-sigma exceeds this, in relative
+#: units (ln of a positive parameter; a linear one over its magnitude): the record does not fix
+#: that combination to within a factor of e.
+UNIDENTIFIED_SIGMA = 1.0
+#: Components of an unidentified direction listed in the report (|component| at least this).
+DIRECTION_COMPONENT = 0.3
+
+
+def measurement_for(names, values) -> str:
+    """The measurement that would identify a direction made of ``names`` (fitted values ``values``)."""
+    mechanical = {"khat", "chat", "lam", "Y", "ML", "cD", "f2", "damping2"}
+    if mechanical & set(names):
+        if "khat" in values:
+            f1 = float(np.sqrt(values["khat"]) / (2 * np.pi))
+            return f"excite near the first mechanical resonance (about {f1:.3g} Hz): a chirp or steps through it"
+        return "excite near the mechanical resonances (a chirp or steps through them)"
+    if {"zetahat", "nu", "zeta_fem", "zeta2", "M0", "zeta_q"} & set(names):
+        return "record the magnetization beside the displacement (it pins the magnetostrictive gain and bias)"
+    if "Ms" in names:
+        return "drive closer to saturation"
+    if {"a", "k", "rho", "c", "chi_r"} & set(names):
+        return "drive loops at several amplitudes with reversals (minor loops)"
+    if {"heating", "tau_th", "beta_Ms"} & set(names):
+        return "record the coil or rod temperature, or a longer record"
+    return "a longer record with a richer drive"
+
+
+def unidentified_directions(fit, weights, mask) -> list:
+    """Directions of the fitted parameters that the record does not determine (Fisher information).
+
+    The Gauss-Newton covariance ``sigma^2 (J^T J)^-1`` of the fit (J: the Jacobian of the normalized
+    residuals on ``mask``, in the fitted coordinates), taken to relative units (ln for positive
+    parameters, value/|value| for linear ones) and diagonalized: an eigen-direction whose 1-sigma
+    exceeds ``UNIDENTIFIED_SIGMA`` is a combination of parameters the record leaves open. Returns,
+    largest first, ``{"sigma", "components": {name: weight}, "measurement"}``."""
+    from .fit import Objective
+
+    model = fit.model
+    names = model.free_names
+    if not names:
+        return []
+    x = model.x_from_values(fit.values)
+    objective = Objective(model, weights, mask)
+    J = objective.jacobian(x)
+    dof = max(J.shape[0] - len(names), 1)
+    covariance = np.linalg.pinv(J.T @ J) * (fit.sse / dof)
+    relative = np.ones(len(names))
+    for i, name in enumerate(names):
+        p = model.parameters[name]
+        if not p.log:
+            relative[i] = p.scale / max(abs(fit.values[name]), 0.05 * (p.upper - p.lower))
+    covariance = covariance * np.outer(relative, relative)
+    eigenvalues, vectors = np.linalg.eigh(covariance)
+    out = []
+    for value, vector in sorted(zip(eigenvalues, vectors.T), key=lambda item: -item[0]):
+        sigma = float(np.sqrt(max(value, 0.0)))
+        if sigma <= UNIDENTIFIED_SIGMA:
+            break
+        components = {names[i]: float(vector[i]) for i in np.argsort(-np.abs(vector))
+                      if abs(vector[i]) >= DIRECTION_COMPONENT}
+        out.append({"sigma": sigma, "components": components,
+                    "measurement": measurement_for(list(components), fit.values)})
+    return out
+
+
+def describe_direction(direction) -> str:
+    terms = " ".join(f"{w:+.2f} {name}" for name, w in direction["components"].items())
+    return f"{terms} (1-sigma {direction['sigma']:.2g} relative units)"

@@ -103,3 +103,42 @@ def summarize_features(features: list[dict]) -> str:
     lo, hi = top["worst_bin"]
     return (f"the residual depends most on {top['feature']} ({100 * top['explained_fraction']:.0f} % of its "
             f"variance; largest where {top['feature']} is in [{lo:.4g}, {hi:.4g}])")
+
+
+#: Lags (samples) whose mean autocovariance measures the structured part of a residual.
+STRUCTURE_LAGS = (1, 2, 3)
+#: Moving-block bootstrap draws behind the interval of :func:`structured_power` (fixed seed).
+STRUCTURE_BOOTSTRAP = 200
+
+
+def structured_power(residual, bootstrap: int = STRUCTURE_BOOTSTRAP, seed: int = 0) -> dict:
+    """The predictable part of a residual as a share of its unpredictable (noise) part: an effect
+    size, not a significance level.
+
+    For a residual r = s + e with e white and s varying slower than a few samples, the
+    autocovariance at lags 1..3 (about zero, so an offset counts) is the power of s, whatever the
+    power of e: ``structured = mean_k mean_t r_t r_{t+k}``, ``noise = mean r^2 - structured``,
+    ``share = structured/noise``. Unlike the held-out RMSE it needs no estimate of the noise
+    level, and unlike a whiteness p-value it does not grow with the record: a 5 % systematic
+    error stays 0.05 at any length. The interval is a 95 % moving-block bootstrap (blocks of
+    ``max(50, n/40)`` samples, so the slow structure stays inside a block)."""
+    r = np.asarray(residual, dtype=float)
+    n = r.size
+
+    def share_of(x):
+        total = float(np.mean(x * x))
+        lagged = float(np.mean([np.mean(x[:-k] * x[k:]) for k in STRUCTURE_LAGS]))
+        noise = max(total - lagged, 1e-300)
+        return lagged / noise, lagged, noise
+
+    share, structured, noise = share_of(r)
+    block = max(50, n // 40)
+    if n < 2 * block:
+        return {"share": share, "ci95": [float("nan"), float("nan")], "structured_power": structured,
+                "noise_power": noise, "block_samples": block}
+    rng = np.random.default_rng(seed)
+    starts = rng.integers(0, n - block + 1, size=(bootstrap, n // block))
+    shares = [share_of(np.concatenate([r[s:s + block] for s in row]))[0] for row in starts]
+    lo, hi = np.percentile(shares, [2.5, 97.5])
+    return {"share": share, "ci95": [float(lo), float(hi)], "structured_power": structured, "noise_power": noise,
+            "block_samples": block}

@@ -29,11 +29,27 @@ the base model when those parameters vanish:
 ``rod_dynamics``                ``f2`` (Hz), ``damping2`` (damping ratio) and ``g2``: a second
                                 longitudinal rod mode (10) in parallel with the lumped one; g2
                                 is its static gain relative to the first
-``delta_e``                     ``delta_e``: the Delta-E effect, a stiffness that follows the
-                                magnetization, ``khat*(1 + delta_e*((M/Ms)^2 - (M0/Ms)^2))``
-                                (Terfenol-D stiffens toward saturation; Clark's Delta-E)
+``delta_e``                     ``delta_e``, ``delta_e_linear``: the Delta-E effect, a stiffness
+                                that follows the magnetization, a quadratic in m = M/Ms:
+                                ``khat*(1 + delta_e*(m^2 - m0^2) + delta_e_linear*(m - m0))``
+                                (Terfenol-D stiffens toward saturation; Clark's Delta-E). The
+                                family holds Clark's M^2 law (delta_e_linear = 0) and a law in
+                                (M - Mb)^2 about another centre Mb (delta_e_linear = -2*delta_e*Mb/Ms)
 ``anhysteretic_shape``          the other anhysteretic curve (Ising <-> Langevin)
+``input_map``                   ``input_quadratic``, ``input_cubic``, ``input_saturation``: the field
+                                is a static map of the recorded one, ``H = H_rec*(1 + q*u + c*u^2)
+                                / sqrt(1 + s*u^2)`` with u = H_rec/max|H_rec| (a saturating amplifier:
+                                s > 0 or c < 0; an asymmetric one: q)
+``sensor_map``                  ``sensor_quadratic_<ch>``, ``sensor_cubic_<ch>``: each output sensor
+                                has a static nonlinearity, ``y_rec = y + s*(q2*v^2 + q3*v^3)`` with
+                                v = (y - centre)/s over the recorded channel's range (half-span s)
 ==============================  ============================================================
+
+Each extension fills one *slot* of the model chain (:data:`EFFECT_SLOTS`): the input map, the
+anhysteretic curve, the time variation of the material, the rate dependence, the
+magnetostriction law, the stiffness, the mechanical modes, the sensor's dynamics or the sensor's
+static map. The flexible families (``delta_e``, ``input_map``, ``sensor_map``) hold the textbook
+law as a special case and other laws of the same slot besides (issue 22).
 
 The fitted coordinates are ``ln(value)`` for the positive scale parameters and
 ``value/scale`` for the others; the feedback is fitted as ``rho = alpha*Man'(0)`` (the
@@ -56,7 +72,24 @@ from .recording import Recording
 
 TRANSDUCERS = ("none", "first_order", "lumped", "lumped_nonlinear", "fem")
 EFFECTS = ("thermal_drift", "eddy_current", "quadratic_magnetostriction", "rod_dynamics",
-           "sensor_lag", "field_bias", "anhysteretic_shape", "delta_e", "small_loop")
+           "sensor_lag", "field_bias", "anhysteretic_shape", "delta_e", "small_loop", "input_map", "sensor_map")
+#: The slot of the model chain each extension fills, in an engineer's words (issue 22).
+EFFECT_SLOTS = {
+    "field_bias": "input map (recorded to true field): an offset",
+    "input_map": "input map (recorded to true field): a static nonlinearity, e.g. a saturating amplifier",
+    "anhysteretic_shape": "anhysteretic curve",
+    "small_loop": "anhysteretic curve at low field (reversible susceptibility)",
+    "thermal_drift": "time variation of the material parameters (a(t), Ms(t))",
+    "eddy_current": "rate dependence",
+    "quadratic_magnetostriction": "magnetostriction law",
+    "delta_e": "stiffness (it follows the magnetization)",
+    "rod_dynamics": "mechanical dynamics (a second mode)",
+    "sensor_lag": "sensor dynamics (a lag)",
+    "sensor_map": "sensor static map (a nonlinearity)",
+}
+#: Sensor-map parameters per output channel.
+SENSOR_MAP_NAMES = {"magnetization": ("sensor_quadratic_m", "sensor_cubic_m"),
+                    "displacement": ("sensor_quadratic_x", "sensor_cubic_x")}
 #: Parameters each extension adds (anhysteretic_shape adds none: it swaps the curve).
 EFFECT_PARAMETERS = {
     "field_bias": ("H0",),
@@ -67,8 +100,10 @@ EFFECT_PARAMETERS = {
     # damping2, not zeta2: zeta2 is the M^2 gain of lumped_nonlinear (12)
     "rod_dynamics": ("f2", "damping2", "g2"),
     "anhysteretic_shape": (),
-    "delta_e": ("delta_e",),
+    "delta_e": ("delta_e", "delta_e_linear"),
     "small_loop": ("chi_r",),
+    "input_map": ("input_quadratic", "input_cubic", "input_saturation"),
+    "sensor_map": SENSOR_MAP_NAMES["magnetization"] + SENSOR_MAP_NAMES["displacement"],
 }
 #: Paper values of the lumped coefficients (13).
 PAPER_CHAT = PAPER_DAMPING     # 1/s
@@ -195,11 +230,18 @@ class Model:
     def magnetization(self, values_list) -> np.ndarray:
         """Simulated M (A/m) for each values dict: shape (T, len(values_list))."""
         rows = np.array([self.magnetic_row(v) for v in values_list])
-        unique, inverse = np.unique(rows, axis=0, return_inverse=True)
         kind = 0 if self.structure.curve == "ising" else 1
-        out = simulate_members(self.recording.time, self.recording.field, np.ascontiguousarray(unique), kind,
-                               self.max_field_step, AMBIENT_TEMPERATURE)
-        return out[:, np.asarray(inverse).reshape(-1)]
+        maps = np.array([[v.get(n, 0.0) for n in EFFECT_PARAMETERS["input_map"]] for v in values_list])
+        out = np.empty((self.recording.size, len(values_list)))
+        # members that share an input map share one field (one bank call per distinct map)
+        for shape in np.unique(maps, axis=0):
+            group = np.flatnonzero(np.all(maps == shape, axis=1))
+            unique, inverse = np.unique(rows[group], axis=0, return_inverse=True)
+            field = mapped_field(self.recording.field, *shape)
+            simulated = simulate_members(self.recording.time, field, np.ascontiguousarray(unique), kind,
+                                         self.max_field_step, AMBIENT_TEMPERATURE)
+            out[:, group] = simulated[:, np.asarray(inverse).reshape(-1)]
+        return out
 
     def predict(self, values, magnetization=None) -> dict:
         """Predicted channels for one values dict (``magnetization`` may be passed if known)."""
@@ -208,11 +250,21 @@ class Model:
         out = {}
         time = self.recording.time
         if "magnetization" in self.channels:
-            out["magnetization"] = _lag(time, magnetization, values.get("tau_m", 0.0), self._classes)
+            out["magnetization"] = self._sensor_map("magnetization", values, _lag(
+                time, magnetization, values.get("tau_m", 0.0), self._classes))
         if "displacement" in self.channels:
-            out["displacement"] = _lag(time, self.displacement(values, magnetization),
-                                       values.get("tau_x", 0.0), self._classes)
+            out["displacement"] = self._sensor_map("displacement", values, _lag(
+                time, self.displacement(values, magnetization), values.get("tau_x", 0.0), self._classes))
         return out
+
+    def _sensor_map(self, channel, values, signal):
+        """The sensor's static map (``sensor_map``; identity when its coefficients vanish)."""
+        quadratic, cubic = (values.get(n, 0.0) for n in SENSOR_MAP_NAMES[channel])
+        if quadratic == 0.0 and cubic == 0.0:
+            return signal
+        centre, half_span = channel_range(self.recording.output(channel))
+        v = (signal - centre) / half_span
+        return signal + half_span * (quadratic * v ** 2 + cubic * v ** 3)
 
     def displacement(self, values, magnetization) -> np.ndarray:
         transducer = self.structure.transducer
@@ -227,10 +279,9 @@ class Model:
             forcing = deviation + (values.get("zeta_q", 0.0) / gain) * deviation ** 2 if gain else deviation
         if transducer == "fem":
             return _fem_tip_displacement(self.recording.time, forcing, gain, values, self._classes)
-        delta_e = values.get("delta_e", 0.0)
-        if delta_e != 0.0 and transducer in ("lumped", "lumped_nonlinear"):
-            Ms = values["Ms"]
-            relative_stiffness = delta_e * ((magnetization / Ms) ** 2 - (M0 / Ms) ** 2)
+        delta_e, delta_e_linear = values.get("delta_e", 0.0), values.get("delta_e_linear", 0.0)
+        if (delta_e != 0.0 or delta_e_linear != 0.0) and transducer in ("lumped", "lumped_nonlinear"):
+            relative_stiffness = relative_stiffness_change(magnetization, values)
             return varying_stiffness_response(self.recording.time, gain * forcing, relative_stiffness,
                                               values["khat"], values["chat"], classes=self._classes)
         if transducer == "first_order":
@@ -247,6 +298,29 @@ class Model:
             B = np.concatenate([B, B2])
             C = np.concatenate([C, C2])
         return lti_response(self.recording.time, forcing, A, B, C, start="steady", classes=self._classes)
+
+
+def relative_stiffness_change(magnetization, values):
+    """The Delta-E family's relative stiffness change khat(M)/khat - 1 (1) at ``magnetization`` (A/m):
+    ``delta_e*(m^2 - m0^2) + delta_e_linear*(m - m0)``, m = M/Ms, zero at the bias M0."""
+    m, m0 = magnetization / values["Ms"], values["M0"] / values["Ms"]
+    return values.get("delta_e", 0.0) * (m ** 2 - m0 ** 2) + values.get("delta_e_linear", 0.0) * (m - m0)
+
+
+def mapped_field(field, quadratic, cubic, saturation):
+    """The ``input_map`` family: the true field (A/m) for the recorded ``field`` (A/m),
+    ``H*(1 + quadratic*u + cubic*u^2)/sqrt(1 + saturation*u^2)`` with u = H/max|H|: a polynomial
+    and an algebraic sigmoid (close to tanh) in one family, the identity when all three vanish."""
+    if quadratic == 0.0 and cubic == 0.0 and saturation == 0.0:
+        return field
+    u = field / (float(np.max(np.abs(field))) or 1.0)
+    return np.ascontiguousarray(field * (1.0 + quadratic * u + cubic * u ** 2) / np.sqrt(1.0 + saturation * u ** 2))
+
+
+def channel_range(signal):
+    """(centre, half-span) of a recorded channel: the frame of the ``sensor_map`` polynomial."""
+    lo, hi = float(np.min(signal)), float(np.max(signal))
+    return 0.5 * (lo + hi), (0.5 * (hi - lo) or 1.0)
 
 
 #: Name of the displacement gain of each base transducer.
@@ -386,6 +460,21 @@ def extension_parameters(recording: Recording, structure: Structure, base_values
     elif effect == "delta_e":
         out["delta_e"] = Parameter("delta_e", 0.0, -0.5, 3.0, "1 (relative stiffness change, M = 0 to Ms)",
                                    scale=0.1)
+        out["delta_e_linear"] = Parameter("delta_e_linear", 0.0, -3.0, 3.0,
+                                          "1 (relative stiffness change per unit M/Ms)", scale=0.1)
+    elif effect == "input_map":
+        # monotone on |u| <= 1 needs 1 + 2*q*u + 3*c*u^2 > 0: c >= -1/3 at q = 0 (a tanh's cubic term)
+        out["input_quadratic"] = Parameter("input_quadratic", 0.0, -0.5, 0.5, "1 (per unit H/max|H|)", scale=0.05)
+        out["input_cubic"] = Parameter("input_cubic", 0.0, -0.33, 1.0, "1 (per unit (H/max|H|)^2)", scale=0.05)
+        # gain at the peak field down to 1/sqrt(1 + 30) = 0.18 of the small-signal gain
+        out["input_saturation"] = Parameter("input_saturation", 0.0, 0.0, 30.0, "1 (per unit (H/max|H|)^2)",
+                                            scale=0.5)
+    elif effect == "sensor_map":
+        for channel, names in SENSOR_MAP_NAMES.items():
+            free = channel in recording.channels and (channel == "magnetization" or structure.transducer != "none")
+            for name in names:
+                out[name] = Parameter(name, 0.0, -0.5, 0.5, "1 (of the channel's half-span)", scale=0.05,
+                                      free=free)
     elif effect == "small_loop":
         # a reversible susceptibility up to three times the anhysteretic's initial slope
         # Ms*slope_factor/a (fits to measured ferrite loops give 0.4-0.8 times it)
@@ -405,7 +494,8 @@ def extension_parameters(recording: Recording, structure: Structure, base_values
 def applicable_effects(recording: Recording, structure: Structure) -> list[str]:
     """Vocabulary effects that can show in this recording under this base structure."""
     has_x = "displacement" in recording.channels and structure.transducer not in ("none",)
-    effects = ["thermal_drift", "eddy_current", "sensor_lag", "field_bias", "anhysteretic_shape", "small_loop"]
+    effects = ["thermal_drift", "eddy_current", "sensor_lag", "field_bias", "anhysteretic_shape", "small_loop",
+               "input_map", "sensor_map"]
     if has_x and structure.transducer != "lumped_nonlinear":
         effects.insert(2, "quadratic_magnetostriction")
     if has_x and structure.transducer in ("lumped", "lumped_nonlinear"):

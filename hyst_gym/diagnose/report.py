@@ -9,7 +9,8 @@ import numpy as np
 
 from ..physics.constants import ROOM_TEMPERATURE
 from .fit import FitResult
-from .model import EFFECT_PARAMETERS, slope_factor
+from .model import (EFFECT_PARAMETERS, SENSOR_MAP_NAMES, channel_range, mapped_field, relative_stiffness_change,
+                    slope_factor)
 
 EFFECT_WORDS = {
     "thermal_drift": "thermal drift: the material heats up during the record and its anhysteretic parameter a "
@@ -21,12 +22,17 @@ EFFECT_WORDS = {
     "sensor_lag": "sensor lag: a first-order lag in the output sensor(s)",
     "field_bias": "an unrecorded DC bias field H0 (e.g. a permanent magnet) added to H",
     "anhysteretic_shape": "the other anhysteretic curve (Ising (2) <-> Langevin (3))",
-    "delta_e": "the Delta-E effect: the transducer's stiffness changes with its magnetization",
+    "delta_e": "the Delta-E effect: the transducer's stiffness changes with its magnetization (a quadratic in "
+               "M/Ms, plotted in stiffness.png)",
+    "input_map": "an input map: the field in the material is a static nonlinear function of the recorded one "
+                 "(e.g. a saturating amplifier; plotted in input_map.png)",
+    "sensor_map": "a sensor nonlinearity: an output sensor reads a static nonlinear function of the true output "
+                  "(plotted in sensor_map.png)",
     "small_loop": "small-loop (Rayleigh) behaviour: a reversible low-field susceptibility chi_r that (6) lacks, "
                   "fading at saturation",
 }
 UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "tau_th": "s", "beta_Ms": "1/K", "tau_m": "s", "tau_x": "s",
-         "zeta_q": "m/s^2 per (A/m)^2", "f2": "Hz", "damping2": "", "g2": "", "delta_e": "", "chi_r": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "",
+         "zeta_q": "m/s^2 per (A/m)^2", "f2": "Hz", "damping2": "", "g2": "", "delta_e": "", "delta_e_linear": "", "chi_r": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "",
          "alpha": ""}
 
 
@@ -49,16 +55,58 @@ def _fmt(name, values, sigmas):
     return text + (f" {unit}" if unit else "")
 
 
-def record_temperature_rise(recording, values) -> float:
-    """K: the fitted thermal model's temperature rise from the first to the last sample,
-    dT/dt = heating*H^2 - T/tau_th integrated exactly over each sample interval (H held). Unlike a
-    steady-state rise, it stays meaningful when tau_th is much longer than the record."""
+def temperature_rise_trace(recording, values) -> np.ndarray:
+    """K per sample: the fitted thermal model's temperature rise, dT/dt = heating*H^2 - T/tau_th
+    integrated exactly over each sample interval (H held), from 0 at the first sample."""
     decay = np.exp(-np.diff(recording.time) / values["tau_th"])
     drive = values["heating"] * values["tau_th"] * recording.field[:-1] ** 2
-    rise = 0.0
-    for factor, target in zip(decay, drive):
-        rise = target + (rise - target) * factor
-    return float(rise)
+    trace = np.zeros(len(recording.time))
+    for i, (factor, target) in enumerate(zip(decay, drive)):
+        trace[i + 1] = target + (trace[i] - target) * factor
+    return trace
+
+
+def record_temperature_rise(recording, values) -> float:
+    """K: the fitted thermal model's temperature rise from the first to the last sample. Unlike a
+    steady-state rise, it stays meaningful when tau_th is much longer than the record."""
+    return float(temperature_rise_trace(recording, values)[-1])
+
+
+def slot_shapes(fit) -> list:
+    """The fitted shape of the slot an extension fills, as curves to plot (issue 22: "model it"):
+    ``(file stem, title, x label, y label, [(label, x, y), ...])`` per plot; empty for extensions
+    whose shape is a number (a lag, a bias)."""
+    values, rec = fit.values, fit.model.recording
+    effect = fit.model.structure.extension
+    if effect == "delta_e":
+        m = np.linspace(-values["Ms"], values["Ms"], 201)
+        stiffness = values["khat"] * (1.0 + relative_stiffness_change(m, values))
+        return [("stiffness", "Stiffness against magnetization (Delta-E family)", "M (A/m)", "khat(M) (1/s^2)",
+                 [("fitted", m, stiffness), ("without the effect", m, np.full_like(m, values["khat"]))])]
+    if effect == "input_map":
+        # the map's frame is max|H| of the record: evaluate it on a grid spanning exactly that range
+        peak = float(np.max(np.abs(rec.field)))
+        h = np.linspace(-peak, peak, 201)
+        shape = [values[n] for n in EFFECT_PARAMETERS["input_map"]]
+        return [("input_map", "Input map: true field against recorded field", "recorded H (A/m)", "true H (A/m)",
+                 [("fitted", h, mapped_field(h, *shape)), ("identity", h, h)])]
+    if effect == "sensor_map":
+        curves = []
+        for channel in fit.model.channels:
+            q2, q3 = (values[n] for n in SENSOR_MAP_NAMES[channel])
+            centre, half = channel_range(rec.output(channel))
+            y = np.linspace(centre - half, centre + half, 201)
+            v = (y - centre) / half
+            curves.append((f"{channel} (fitted)", y, y + half * (q2 * v ** 2 + q3 * v ** 3)))
+        return [("sensor_map", "Sensor static map: reading against true output", "true output", "reading",
+                 curves)]
+    if effect == "thermal_drift":
+        rise = temperature_rise_trace(rec, values)
+        a_t = values["a"] * (ROOM_TEMPERATURE + rise) / ROOM_TEMPERATURE
+        ms_t = values["Ms"] * (1.0 - values.get("beta_Ms", 0.0) * rise)
+        return [("material_drift", "Material parameters over the record (relative to the start)", "time (s)",
+                 "value / value at t = 0", [("a(t)", rec.time, a_t / a_t[0]), ("Ms(t)", rec.time, ms_t / ms_t[0])])]
+    return []
 
 
 def explain(report) -> str:
@@ -195,4 +243,12 @@ def write_plots(report, directory) -> list[Path]:
         ax.legend(fontsize=8, ncol=4)
     fig.tight_layout()
     paths.append(directory / "traces.png"); fig.savefig(paths[-1], dpi=110); plt.close(fig)
+
+    for stem, title, xlabel, ylabel, curves in (slot_shapes(after) if after is not None else []):
+        fig, ax = plt.subplots(figsize=(5.5, 4.2))
+        for label, x, y in curves:
+            ax.plot(x, y, lw=1.2, label=label, ls="--" if label in ("identity", "without the effect") else "-")
+        ax.set_title(title, fontsize=10); ax.set_xlabel(xlabel); ax.set_ylabel(ylabel); ax.legend(fontsize=8)
+        fig.tight_layout()
+        paths.append(directory / f"{stem}.png"); fig.savefig(paths[-1], dpi=110); plt.close(fig)
     return paths

@@ -166,3 +166,56 @@ def test_delta_e_displacement_matches_an_independent_integration():
     effect = np.max(np.abs(x - varying_stiffness_response(time, forcing, 0 * relative, khat, chat)))
     assert effect > 0.1 * np.ptp(x)                       # the stiffness change is large here ...
     assert np.max(np.abs(sol.y[0] - x)) < 1e-3 * np.ptp(x)  # ... and integrated to 0.1 % of the response
+
+
+# ---------------------------------------------------------------------------- families (issue 22)
+
+
+def test_delta_e_family_holds_a_law_about_another_centre():
+    """A stiffness law in (M - Mb)^2 about a centre Mb != 0 is the family's member with
+    delta_e_linear = -2*delta_e*Mb/Ms (expanded by hand here), zero at the bias M0."""
+    from hyst_gym.diagnose.model import relative_stiffness_change
+
+    rng = np.random.default_rng(5)
+    Ms, M0, Mb, delta = 7e5, 1.2e5, -2.5e5, 0.8
+    m = rng.uniform(-Ms, Ms, 500)
+    shifted = delta * (((m - Mb) / Ms) ** 2 - ((M0 - Mb) / Ms) ** 2)
+    values = {"Ms": Ms, "M0": M0, "delta_e": delta, "delta_e_linear": -2 * delta * Mb / Ms}
+    np.testing.assert_allclose(relative_stiffness_change(m, values), shifted, rtol=1e-12, atol=1e-12)
+    assert relative_stiffness_change(np.array([M0]), values)[0] == pytest.approx(0.0, abs=1e-15)
+
+
+def test_input_map_family_identity_and_algebraic_sigmoid():
+    """The input map is the identity at zero coefficients and, with only its saturation term, the
+    algebraic sigmoid H/sqrt(1 + s*(H/Hmax)^2), which stays within a few % of Hs*tanh(H/Hs) for a
+    moderate saturation (gain at the peak 0.8 of the small-signal gain)."""
+    from hyst_gym.diagnose.model import mapped_field
+
+    h = np.linspace(-3e4, 3e4, 301)
+    assert mapped_field(h, 0.0, 0.0, 0.0) is h
+    s = 0.6
+    np.testing.assert_allclose(mapped_field(h, 0.0, 0.0, s), h / np.sqrt(1 + s * (h / 3e4) ** 2), rtol=1e-12)
+    # a tanh with the same peak value and slope 1 at 0: Hs*tanh(Hmax/Hs) = Hmax/sqrt(1 + s)
+    from scipy.optimize import brentq
+
+    peak = 3e4 / np.sqrt(1 + s)
+    hs = brentq(lambda x: x * np.tanh(3e4 / x) - peak, 1e3, 1e7)
+    assert np.max(np.abs(mapped_field(h, 0.0, 0.0, s) - hs * np.tanh(h / hs))) < 0.05 * peak
+
+
+def test_static_maps_must_be_monotone_to_be_plausible():
+    """The plausibility check computes the maps' slopes analytically; they agree with finite
+    differences of the maps themselves, and a map that folds back is caught."""
+    from hyst_gym.diagnose.decide import static_map_slopes
+    from hyst_gym.diagnose.model import mapped_field
+
+    values = {"input_quadratic": 0.3, "input_cubic": -0.2, "input_saturation": 2.0}
+    (_, slope), = static_map_slopes("input_map", values, ())
+    u = np.linspace(-1.0, 1.0, 201)
+    numeric = np.gradient(mapped_field(u, 0.3, -0.2, 2.0), u)
+    np.testing.assert_allclose(slope[1:-1], numeric[1:-1], atol=2e-3)
+    folding = {"input_quadratic": 0.5, "input_cubic": -0.33, "input_saturation": 0.0}
+    assert np.min(static_map_slopes("input_map", folding, ())[0][1]) < 0.0
+    sensor = {"sensor_quadratic_x": 0.1, "sensor_cubic_x": -0.2, "sensor_quadratic_m": 0.0, "sensor_cubic_m": 0.0}
+    (_, x_slope), = static_map_slopes("sensor_map", sensor, ("displacement",))
+    assert np.all(x_slope > 0.0)
