@@ -102,7 +102,7 @@ CONSISTENCY_SPREAD = 0.5
 #: ...or within this many of their own standard errors of each other.
 CONSISTENCY_SIGMAS = 3.0
 #: Parameters whose bounds are search ranges rather than physical walls (a fit may end there).
-SEARCH_RANGES_ONLY = ("tau_th", "g2", "damping2", "input_saturation")
+SEARCH_RANGES_ONLY = ("tau_th", "g2", "damping2", "input_saturation", "heating_exponent")
 #: The parameter each effect is identified by (refitted per block).
 MAIN_PARAMETER = {"field_bias": "H0", "eddy_current": "k_e", "thermal_drift": "heating",
                   "quadratic_magnetostriction": "zeta_q", "rod_dynamics": "f2", "delta_e": "delta_e",

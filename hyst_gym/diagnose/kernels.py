@@ -39,7 +39,8 @@ from ..physics.linear_system import first_order_hold, lti_step
 from ..physics.thermal import a_law_kernel, mean_square_linear_kernel
 
 #: Columns of the per-member magnetic parameter matrix used by :func:`simulate_members`.
-MAGNETIC_COLUMNS = ("a", "k", "alpha", "Ms", "c", "H0", "k_e", "heating", "tau_th", "beta_Ms", "chi_r")
+MAGNETIC_COLUMNS = ("a", "k", "alpha", "Ms", "c", "H0", "k_e", "heating", "tau_th", "beta_Ms", "chi_r",
+                    "heating_exponent")
 AMBIENT_TEMPERATURE = ROOM_TEMPERATURE  # K, reference temperature of the fitted a (eq. 4)
 
 
@@ -55,7 +56,7 @@ def _advance(m, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step):
 def simulate_members(time, field, params, kind, max_field_step, ambient):
     """Magnetization (A/m), shape ``(T, B)``, of ``B`` extended models under one field.
 
-    ``params`` has shape ``(B, 10)`` with the columns of :data:`MAGNETIC_COLUMNS`.
+    ``params`` has shape ``(B, len(MAGNETIC_COLUMNS))`` with the columns of :data:`MAGNETIC_COLUMNS`.
     Members without eddy currents or heating that see the same bias H0 share one field:
     they run together through the physics bank kernel (members in the inner, vectorized
     loop), which is several times faster than one member after the other. The others
@@ -122,6 +123,10 @@ def _simulate_one(time, field, row, kind, max_field_step, ambient, out, b):
     heating = row[7]
     tau = row[8]
     beta = row[9]
+    exponent = row[11]
+    # the heating drive heating*|H|^p is written heating*h_ref^2*(|H|/h_ref)^p with h_ref the record's RMS
+    # field, so that ``heating`` keeps its unit (K/s per (A/m)^2) and its size whatever p is
+    h_ref = math.sqrt(np.mean(field * field)) + 1e-300
     m = _advance(0.0, 0.0, field[0] + H0, a0, k, alpha, Ms0, c, kind, max_field_step)
     he = field[0] + H0
     theta = 0.0
@@ -131,7 +136,11 @@ def _simulate_one(time, field, row, kind, max_field_step, ambient, out, b):
     for t in range(1, n_samples):
         dt = time[t] - time[t - 1]
         if heating != 0.0:
-            h_sq = mean_square_linear_kernel(field[t - 1], field[t])
+            if exponent == 2.0:
+                h_sq = mean_square_linear_kernel(field[t - 1], field[t])
+            else:  # trapezoid over the sample interval
+                h_sq = h_ref * h_ref * 0.5 * ((abs(field[t - 1]) / h_ref) ** exponent
+                                              + (abs(field[t]) / h_ref) ** exponent)
             decay = math.exp(-dt / tau)
             theta = theta * decay + heating * h_sq * tau * (1.0 - decay)
             a = a_law_kernel(a0, ambient + theta, ambient)  # (4), a0 at the ambient temperature

@@ -145,7 +145,7 @@ def _check_arguments(effect, seed, strength, output, n_samples):
 
 def _magnetic_row(effect, strength, effect_rng, material, field, fine_time, amplitude):
     """The member row (:data:`MAGNETIC_COLUMNS`) of the true material with the magnetic effect."""
-    row = dict(material, H0=0.0, k_e=0.0, heating=0.0, tau_th=1.0, beta_Ms=0.0, chi_r=0.0)
+    row = dict(material, H0=0.0, k_e=0.0, heating=0.0, tau_th=1.0, beta_Ms=0.0, chi_r=0.0, heating_exponent=2.0)
     kind = 1 if material["curve"] == "langevin" else 0
     del row["curve"]
     duration = fine_time[-1]

@@ -19,8 +19,10 @@ the base model when those parameters vanish:
 ==============================  ============================================================
 ``field_bias``                  ``H0`` (A/m) added to the recorded field
 ``eddy_current``                ``k_e`` (s): ``H_eff = H - k_e*dM/dt``
-``thermal_drift``               ``heating`` (K/s per (A/m)^2) and ``tau_th`` (s): coil
-                                temperature rise, ``a(T) = a*T/T_amb`` (4) (slope a/T_amb),
+``thermal_drift``               ``heating`` (K/s per (A/m)^2), ``tau_th`` (s) and
+                                ``heating_exponent`` p: coil temperature rise driven by
+                                heating*h_ref^2*(|H|/h_ref)^p (p = 2: Joule heating; h_ref the RMS
+                                field), ``a(T) = a*T/T_amb`` (4) (slope a/T_amb),
                                 ``beta_Ms`` (1/K): ``Ms(T) = Ms*(1 - beta_Ms*(T - T_amb))``
 ``sensor_lag``                  ``tau_m``, ``tau_x`` (s): first-order sensor lags
 ``quadratic_magnetostriction``  ``zeta_q``: forcing ``zetahat*(M-M0) + zeta_q*(M-M0)^2``
@@ -94,7 +96,7 @@ SENSOR_MAP_NAMES = {"magnetization": ("sensor_quadratic_m", "sensor_cubic_m"),
 EFFECT_PARAMETERS = {
     "field_bias": ("H0",),
     "eddy_current": ("k_e",),
-    "thermal_drift": ("heating", "tau_th", "beta_Ms"),
+    "thermal_drift": ("heating", "tau_th", "beta_Ms", "heating_exponent"),
     "sensor_lag": ("tau_m", "tau_x"),
     "quadratic_magnetostriction": ("zeta_q",),
     # damping2, not zeta2: zeta2 is the M^2 gain of lumped_nonlinear (12)
@@ -224,7 +226,7 @@ class Model:
         row = dict(a=a, k=values["k"], alpha=alpha, Ms=Ms, c=values["c"], H0=values.get("H0", 0.0),
                    k_e=values.get("k_e", 0.0), heating=values.get("heating", 0.0),
                    tau_th=values.get("tau_th", 1.0), beta_Ms=values.get("beta_Ms", 0.0),
-                   chi_r=values.get("chi_r", 0.0))
+                   chi_r=values.get("chi_r", 0.0), heating_exponent=values.get("heating_exponent", 2.0))
         return np.array([row[c] for c in MAGNETIC_COLUMNS])
 
     def magnetization(self, values_list) -> np.ndarray:
@@ -448,6 +450,9 @@ def extension_parameters(recording: Recording, structure: Structure, base_values
         out["heating"] = Parameter("heating", 0.01 * upper, 0.0, upper, "K/s per (A/m)^2", scale=0.01 * upper)
         out["tau_th"] = Parameter("tau_th", duration, 5 * dt, 1e3 * duration, "s", log=True)
         out["beta_Ms"] = Parameter("beta_Ms", 0.0, -0.01, 0.01, "1/K", scale=1e-3)
+        # the family's heating law: drive ~ |H|^p (Joule heating of a current-driven coil: p = 2;
+        # core or hysteresis loss: p between 1 and 3)
+        out["heating_exponent"] = Parameter("heating_exponent", 2.0, 0.5, 4.0, "1", scale=0.5)
     elif effect == "sensor_lag":
         for name, channel in (("tau_m", "magnetization"), ("tau_x", "displacement")):
             free = channel in recording.channels and (channel == "magnetization" or structure.transducer != "none")

@@ -31,7 +31,7 @@ EFFECT_WORDS = {
     "small_loop": "small-loop (Rayleigh) behaviour: a reversible low-field susceptibility chi_r that (6) lacks, "
                   "fading at saturation",
 }
-UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "tau_th": "s", "beta_Ms": "1/K", "tau_m": "s", "tau_x": "s",
+UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "heating_exponent": "", "tau_th": "s", "beta_Ms": "1/K", "tau_m": "s", "tau_x": "s",
          "zeta_q": "m/s^2 per (A/m)^2", "f2": "Hz", "damping2": "", "g2": "", "delta_e": "", "delta_e_linear": "", "chi_r": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "",
          "alpha": ""}
 
@@ -59,7 +59,9 @@ def temperature_rise_trace(recording, values) -> np.ndarray:
     """K per sample: the fitted thermal model's temperature rise, dT/dt = heating*H^2 - T/tau_th
     integrated exactly over each sample interval (H held), from 0 at the first sample."""
     decay = np.exp(-np.diff(recording.time) / values["tau_th"])
-    drive = values["heating"] * values["tau_th"] * recording.field[:-1] ** 2
+    exponent = values.get("heating_exponent", 2.0)
+    h_ref = float(np.sqrt(np.mean(recording.field ** 2))) or 1.0
+    drive = values["heating"] * values["tau_th"] * h_ref ** 2 * np.abs(recording.field[:-1] / h_ref) ** exponent
     trace = np.zeros(len(recording.time))
     for i, (factor, target) in enumerate(zip(decay, drive)):
         trace[i + 1] = target + (trace[i] - target) * factor

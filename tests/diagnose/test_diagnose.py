@@ -83,3 +83,37 @@ def test_record_temperature_rise_matches_the_first_order_law():
         assert record_temperature_rise(recording, values) == pytest.approx(expected, rel=1e-6)
     assert record_temperature_rise(recording, {"heating": 1e-8, "tau_th": 1e6}) == pytest.approx(1e-8 * 9e8 * 2.0,
                                                                                                  rel=1e-5)
+
+
+def test_heating_law_family_against_an_independent_integration():
+    """The thermal family's drive heating*h_ref^2*(|H|/h_ref)^p: the report's temperature trace for
+    p = 1 matches scipy's solve_ivp of dT/dt = drive - T/tau (field held between samples), and the
+    kernel's magnetization does not depend on p when |H| is constant (then (|H|/h_ref)^p = 1)."""
+    from types import SimpleNamespace
+
+    from scipy.integrate import solve_ivp
+
+    from hyst_gym.diagnose.kernels import AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, simulate_members
+    from hyst_gym.diagnose.report import temperature_rise_trace
+
+    time = np.linspace(0.0, 1.0, 401)
+    field = 4e4 * np.sin(2 * np.pi * 3.0 * time) + 1e4
+    values = {"heating": 2e-8, "tau_th": 0.4, "heating_exponent": 1.0}
+    h_ref = np.sqrt(np.mean(field ** 2))
+    held = lambda t: field[min(int(np.searchsorted(time, t, side="right")) - 1, time.size - 2)]  # noqa: E731
+    ode = solve_ivp(lambda t, T: [2e-8 * h_ref ** 2 * abs(held(t)) / h_ref - T[0] / 0.4], (0.0, 1.0), [0.0],
+                    t_eval=time, max_step=time[1] - time[0], rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(temperature_rise_trace(SimpleNamespace(time=time, field=field), values), ode.y[0],
+                               rtol=2e-3, atol=1e-3)
+
+    square = 3e4 * np.sign(np.sin(2 * np.pi * 2.0 * time) + 1e-9)
+    row = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=0, heating=1e-8, tau_th=0.3, beta_Ms=1e-3,
+               chi_r=0)
+    rows = np.array([[dict(row, heating_exponent=p)[c] for c in MAGNETIC_COLUMNS] for p in (1.0, 2.0, 3.0)])
+    m = simulate_members(time, square, rows, 0, 500.0, AMBIENT_TEMPERATURE)
+    np.testing.assert_allclose(m[:, 0], m[:, 2], rtol=1e-12, atol=1e-9 * 8e5)
+    # p = 2 averages H^2 exactly over the linear sample interval (the other p by the trapezoid rule):
+    # they differ only on the few intervals where the square wave flips sign
+    np.testing.assert_allclose(m[:, 0], m[:, 1], rtol=0, atol=1e-4 * 8e5)
+    m_sine = simulate_members(time, field, rows, 0, 500.0, AMBIENT_TEMPERATURE)
+    assert np.max(np.abs(m_sine[:, 0] - m_sine[:, 2])) > 1e-3 * 8e5   # a varying |H| feels the law

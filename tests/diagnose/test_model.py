@@ -24,7 +24,7 @@ def test_plain_members_match_physics_kernel():
     """With every extension off, the extended kernel is the physics model (6) driven from 0."""
     time = np.linspace(0, 1, 801)
     field = 8e4 * np.sin(2 * np.pi * 2 * time) * np.exp(-time)
-    row = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=0, heating=0, tau_th=1, beta_Ms=0, chi_r=0)
+    row = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=0, heating=0, tau_th=1, beta_Ms=0, chi_r=0, heating_exponent=2)
     ours = simulate_members(time, field, np.array([[row[c] for c in MAGNETIC_COLUMNS]]), 0, 10.0, AMBIENT_TEMPERATURE)[:, 0]
     ref = simulate_magnetization(np.concatenate([[0.0], field]), max_field_step=10.0, a=6000, k=1500,
                                  alpha=-0.05, Ms=8e5, c=0.2)[1:]
@@ -36,7 +36,7 @@ def test_small_loop_members_match_the_physics_extension_and_share_the_bank_with_
     (6): both give the physics layer's numbers when simulated together."""
     time = np.linspace(0, 1, 801)
     field = 8e4 * np.sin(2 * np.pi * 2 * time) * np.exp(-time)
-    plain = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=0, heating=0, tau_th=1, beta_Ms=0, chi_r=0)
+    plain = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=0, heating=0, tau_th=1, beta_Ms=0, chi_r=0, heating_exponent=2)
     rows = np.array([[dict(plain, chi_r=chi)[c] for c in MAGNETIC_COLUMNS] for chi in (0.0, 30.0, 60.0)])
     ours = simulate_members(time, field, rows, 0, 10.0, AMBIENT_TEMPERATURE)
     for column, chi in enumerate((0.0, 30.0, 60.0)):
@@ -51,7 +51,7 @@ def test_eddy_current_converges_and_lags():
     def run(n, k_e):
         time = np.linspace(0, 0.05, n)
         field = 6e4 * np.sin(2 * np.pi * 40 * time)
-        row = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=k_e, heating=0, tau_th=1, beta_Ms=0, chi_r=0)
+        row = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=k_e, heating=0, tau_th=1, beta_Ms=0, chi_r=0, heating_exponent=2)
         return simulate_members(time, field, np.array([[row[c] for c in MAGNETIC_COLUMNS]]), 0, 10.0,
                                 AMBIENT_TEMPERATURE)[:, 0]
     coarse, fine, finest = run(501, 2e-5)[::1], run(2001, 2e-5)[::4], run(8001, 2e-5)[::16]
