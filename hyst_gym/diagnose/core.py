@@ -350,7 +350,28 @@ def _effect_starts(model, effect, base_values):
     if effect == "input_map":
         # from the identity and from a moderate saturation (gain at the peak field 0.7 of the small-signal one)
         return [start, dict(start, input_saturation=1.0)]
+    if effect == "mains_pickup":
+        return [dict(start, mains_hz=mains_frequency(model, base_values))]
     return [start]
+
+
+def mains_frequency(model, base_values) -> float:
+    """50 or 60 Hz: the mains frequency whose sine and cosine (and third harmonics) explain more of the
+    base model's residual, summed over the channels (least squares)."""
+    predicted = model.predict(base_values)
+    time = model.recording.time
+    best, explained_best = 50.0, -1.0
+    for hz in (50.0, 60.0):
+        phase = 2 * np.pi * hz * time
+        design = np.column_stack([np.cos(phase), np.sin(phase), np.cos(3 * phase), np.sin(3 * phase)])
+        explained = 0.0
+        for ch in model.channels:
+            residual = model.recording.output(ch) - predicted[ch]
+            coef, *_ = np.linalg.lstsq(design, residual - residual.mean(), rcond=None)
+            explained += float(np.sum((design @ coef) ** 2)) / (float(np.sum(residual ** 2)) or 1.0)
+        if explained > explained_best:
+            best, explained_best = hz, explained
+    return best
 
 
 def diagnose(recording, model: str = "lumped", anhysteretic: str = "ising", fit_mechanics: bool = True,

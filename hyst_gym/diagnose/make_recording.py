@@ -53,7 +53,8 @@ from .recording import Recording, write_recording
 #: The effects this generator conceals: the vocabulary's textbook laws. The flexible families added for
 #: other forms (``input_map``, ``sensor_map``) are judged on recordings from independent generators
 #: (``experiments/independent_recordings.py``, ``experiments/other_forms.py``), not drawn here.
-GENERATOR_EFFECTS = tuple(e for e in EFFECTS if e not in ("input_map", "sensor_map")) + ("none",)
+GENERATOR_EFFECTS = tuple(e for e in EFFECTS if e not in ("input_map", "sensor_map", "sensor_drift", "mains_pickup")
+                          ) + ("none",)
 OVERSAMPLE = 4
 PAPER_ZETAHAT = PAPER_COUPLING  # m/s^2 per A/m, eq. (13)
 

@@ -45,6 +45,13 @@ the base model when those parameters vanish:
 ``sensor_map``                  ``sensor_quadratic_<ch>``, ``sensor_cubic_<ch>``: each output sensor
                                 has a static nonlinearity, ``y_rec = y + s*(q2*v^2 + q3*v^3)`` with
                                 v = (y - centre)/s over the recorded channel's range (half-span s)
+``sensor_drift``                ``drift_linear_<ch>``, ``drift_quadratic_<ch>``: a slow additive drift
+                                of each sensor's offset, ``s*(d1*P1(tau) + d2*P2(tau))`` with P the
+                                Legendre polynomials of the record's time mapped to [-1, 1]
+``mains_pickup``                ``mains_cos_<ch>``, ``mains_sin_<ch>``, ``mains3_cos_<ch>``,
+                                ``mains3_sin_<ch>`` at ``mains_hz`` (50 or 60 Hz, chosen from the
+                                base model's residual): additive pickup of the mains and its third
+                                harmonic, in units of the channel's half-span
 ==============================  ============================================================
 
 Each extension fills one *slot* of the model chain (:data:`EFFECT_SLOTS`): the input map, the
@@ -74,7 +81,8 @@ from .recording import Recording
 
 TRANSDUCERS = ("none", "first_order", "lumped", "lumped_nonlinear", "fem")
 EFFECTS = ("thermal_drift", "eddy_current", "quadratic_magnetostriction", "rod_dynamics",
-           "sensor_lag", "field_bias", "anhysteretic_shape", "delta_e", "small_loop", "input_map", "sensor_map")
+           "sensor_lag", "field_bias", "anhysteretic_shape", "delta_e", "small_loop", "input_map", "sensor_map",
+           "sensor_drift", "mains_pickup")
 #: The slot of the model chain each extension fills, in an engineer's words (issue 22).
 EFFECT_SLOTS = {
     "field_bias": "input map (recorded to true field): an offset",
@@ -88,7 +96,16 @@ EFFECT_SLOTS = {
     "rod_dynamics": "mechanical dynamics (a second mode)",
     "sensor_lag": "sensor dynamics (a lag)",
     "sensor_map": "sensor static map (a nonlinearity)",
+    "sensor_drift": "sensor offset (a slow drift)",
+    "mains_pickup": "sensor pickup (mains interference at 50/60 Hz)",
 }
+#: Additive sensor terms per output channel: slow offset drift and mains pickup.
+DRIFT_NAMES = {"magnetization": ("drift_linear_m", "drift_quadratic_m"),
+               "displacement": ("drift_linear_x", "drift_quadratic_x")}
+MAINS_NAMES = {ch: tuple(f"{term}_{ch[0]}" for term in ("mains_cos", "mains_sin", "mains3_cos", "mains3_sin"))
+               for ch in ("magnetization", "displacement")}
+#: Mains pickup needs this many cycles in the record and its third harmonic below the Nyquist frequency.
+MAINS_MIN_CYCLES = 10
 #: Sensor-map parameters per output channel.
 SENSOR_MAP_NAMES = {"magnetization": ("sensor_quadratic_m", "sensor_cubic_m"),
                     "displacement": ("sensor_quadratic_x", "sensor_cubic_x")}
@@ -106,6 +123,8 @@ EFFECT_PARAMETERS = {
     "small_loop": ("chi_r",),
     "input_map": ("input_quadratic", "input_cubic", "input_saturation"),
     "sensor_map": SENSOR_MAP_NAMES["magnetization"] + SENSOR_MAP_NAMES["displacement"],
+    "sensor_drift": DRIFT_NAMES["magnetization"] + DRIFT_NAMES["displacement"],
+    "mains_pickup": ("mains_hz",) + MAINS_NAMES["magnetization"] + MAINS_NAMES["displacement"],
 }
 #: Paper values of the lumped coefficients (13).
 PAPER_CHAT = PAPER_DAMPING     # 1/s
@@ -260,13 +279,30 @@ class Model:
         return out
 
     def _sensor_map(self, channel, values, signal):
-        """The sensor's static map (``sensor_map``; identity when its coefficients vanish)."""
+        """What the sensor adds to the true output: its static map (``sensor_map``), a slow offset drift
+        (``sensor_drift``) and mains pickup (``mains_pickup``); the identity when their coefficients vanish."""
         quadratic, cubic = (values.get(n, 0.0) for n in SENSOR_MAP_NAMES[channel])
-        if quadratic == 0.0 and cubic == 0.0:
+        drift = [values.get(n, 0.0) for n in DRIFT_NAMES[channel]]
+        mains = [values.get(n, 0.0) for n in MAINS_NAMES[channel]]
+        if quadratic == 0.0 and cubic == 0.0 and not any(drift) and not any(mains):
             return signal
         centre, half_span = channel_range(self.recording.output(channel))
         v = (signal - centre) / half_span
-        return signal + half_span * (quadratic * v ** 2 + cubic * v ** 3)
+        out = signal + half_span * (quadratic * v ** 2 + cubic * v ** 3)
+        if any(drift):
+            out = out + half_span * (drift[0] * self._legendre[1] + drift[1] * self._legendre[2])
+        if any(mains):
+            phase = 2 * np.pi * values["mains_hz"] * self.recording.time
+            out = out + half_span * (mains[0] * np.cos(phase) + mains[1] * np.sin(phase)
+                                     + mains[2] * np.cos(3 * phase) + mains[3] * np.sin(3 * phase))
+        return out
+
+    @property
+    def _legendre(self):
+        """Legendre polynomials P0..P2 of the record's time mapped to [-1, 1]."""
+        time = self.recording.time
+        tau = 2.0 * (time - time[0]) / (float(time[-1] - time[0]) or 1.0) - 1.0
+        return np.ones_like(tau), tau, 0.5 * (3.0 * tau ** 2 - 1.0)
 
     def displacement(self, values, magnetization) -> np.ndarray:
         transducer = self.structure.transducer
@@ -474,6 +510,14 @@ def extension_parameters(recording: Recording, structure: Structure, base_values
         # gain at the peak field down to 1/sqrt(1 + 30) = 0.18 of the small-signal gain
         out["input_saturation"] = Parameter("input_saturation", 0.0, 0.0, 30.0, "1 (per unit (H/max|H|)^2)",
                                             scale=0.5)
+    elif effect in ("sensor_drift", "mains_pickup"):
+        if effect == "mains_pickup":
+            out["mains_hz"] = Parameter("mains_hz", 50.0, 45.0, 65.0, "Hz", free=False)
+        for channel, names in (DRIFT_NAMES if effect == "sensor_drift" else MAINS_NAMES).items():
+            free = channel in recording.channels and (channel == "magnetization" or structure.transducer != "none")
+            for name in names:
+                out[name] = Parameter(name, 0.0, -1.0, 1.0, "1 (of the channel's half-span)", scale=0.01,
+                                      free=free)
     elif effect == "sensor_map":
         for channel, names in SENSOR_MAP_NAMES.items():
             free = channel in recording.channels and (channel == "magnetization" or structure.transducer != "none")
@@ -500,7 +544,11 @@ def applicable_effects(recording: Recording, structure: Structure) -> list[str]:
     """Vocabulary effects that can show in this recording under this base structure."""
     has_x = "displacement" in recording.channels and structure.transducer not in ("none",)
     effects = ["thermal_drift", "eddy_current", "sensor_lag", "field_bias", "anhysteretic_shape", "small_loop",
-               "input_map", "sensor_map"]
+               "input_map", "sensor_map", "sensor_drift"]
+    duration = float(recording.time[-1] - recording.time[0])
+    nyquist = 0.5 / float(np.median(np.diff(recording.time)))
+    if duration * 50.0 >= MAINS_MIN_CYCLES and nyquist > 3 * 60.0 and recording.metadata.get("time_axis") != "synthetic":
+        effects.append("mains_pickup")
     if has_x and structure.transducer != "lumped_nonlinear":
         effects.insert(2, "quadratic_magnetostriction")
     if has_x and structure.transducer in ("lumped", "lumped_nonlinear"):

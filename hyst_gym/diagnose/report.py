@@ -28,6 +28,8 @@ EFFECT_WORDS = {
                  "(e.g. a saturating amplifier; plotted in input_map.png)",
     "sensor_map": "a sensor nonlinearity: an output sensor reads a static nonlinear function of the true output "
                   "(plotted in sensor_map.png)",
+    "sensor_drift": "a slow drift of a sensor's offset over the record (plotted in sensor_drift.png)",
+    "mains_pickup": "mains pickup: an output sensor picks up the 50/60 Hz mains and its third harmonic",
     "small_loop": "small-loop (Rayleigh) behaviour: a reversible low-field susceptibility chi_r that (6) lacks, "
                   "fading at saturation",
 }
@@ -102,6 +104,14 @@ def slot_shapes(fit) -> list:
             curves.append((f"{channel} (fitted)", y, y + half * (q2 * v ** 2 + q3 * v ** 3)))
         return [("sensor_map", "Sensor static map: reading against true output", "true output", "reading",
                  curves)]
+    if effect == "sensor_drift":
+        model = fit.model
+        curves = []
+        for channel in model.channels:
+            plain = {**values, **{n: 0.0 for n in EFFECT_PARAMETERS["sensor_drift"]}}
+            curves.append((channel, rec.time, (model.predict(values)[channel] - model.predict(plain)[channel])
+                           / channel_range(rec.output(channel))[1]))
+        return [("sensor_drift", "Sensor offset drift", "time (s)", "offset / channel half-span", curves)]
     if effect == "thermal_drift":
         rise = temperature_rise_trace(rec, values)
         a_t = values["a"] * (ROOM_TEMPERATURE + rise) / ROOM_TEMPERATURE

@@ -219,3 +219,43 @@ def test_static_maps_must_be_monotone_to_be_plausible():
     sensor = {"sensor_quadratic_x": 0.1, "sensor_cubic_x": -0.2, "sensor_quadratic_m": 0.0, "sensor_cubic_m": 0.0}
     (_, x_slope), = static_map_slopes("sensor_map", sensor, ("displacement",))
     assert np.all(x_slope > 0.0)
+
+
+def test_additive_sensor_terms_are_what_they_say():
+    """sensor_drift adds Legendre P1, P2 of the time in units of the channel's half-span, mains_pickup a
+    50/60 Hz sinusoid and its third harmonic (the FFT peaks at the stated frequencies); both vanish at
+    zero coefficients."""
+    from hyst_gym.diagnose.core import mains_frequency
+    from hyst_gym.diagnose.model import channel_range
+
+    recording, _, _ = make_recording_with_truth("none", 3, output="both", n_samples=4000)
+    structure = Structure("lumped", "ising", "sensor_drift")
+    base = base_parameters(recording, structure)
+    params = {**base, **extension_parameters(recording, structure, {n: p.value for n, p in base.items()})}
+    model = Model(recording, structure, params, 200.0)
+    values = model.values()
+    plain = model.predict(values)
+    drifted = model.predict(dict(values, drift_linear_x=0.1, drift_quadratic_x=-0.05))
+    time = recording.time
+    tau = 2 * (time - time[0]) / (time[-1] - time[0]) - 1
+    half = channel_range(recording.displacement)[1]
+    np.testing.assert_allclose(drifted["displacement"] - plain["displacement"],
+                               half * (0.1 * tau - 0.05 * 0.5 * (3 * tau ** 2 - 1)), rtol=1e-9, atol=1e-15)
+    np.testing.assert_array_equal(drifted["magnetization"], plain["magnetization"])
+
+    structure = Structure("lumped", "ising", "mains_pickup")
+    params = {**base, **extension_parameters(recording, structure, values)}
+    model = Model(recording, structure, params, 200.0)
+    values = dict(model.values(), mains_hz=60.0)
+    picked = model.predict(dict(values, mains_sin_m=0.2, mains3_cos_m=0.1))["magnetization"]
+    added = picked - model.predict(values)["magnetization"]
+    spectrum = np.abs(np.fft.rfft(added))
+    freqs = np.fft.rfftfreq(added.size, float(np.median(np.diff(time))))
+    peaks = freqs[np.argsort(spectrum)[-2:]]
+    assert np.allclose(sorted(peaks), [60.0, 180.0], atol=2 * (freqs[1] - freqs[0]))
+    # the frequency choice reads the residual: pickup at 60 Hz added to the recording is found at 60 Hz
+    from dataclasses import replace as replaced
+
+    noisy = replaced(recording, magnetization=recording.magnetization + added)
+    fitted = Model(noisy, structure, params, 200.0)
+    assert mains_frequency(fitted, values) == 60.0
