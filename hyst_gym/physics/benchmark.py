@@ -13,6 +13,10 @@ model). For context, the same run times
   (libm ``tanh``, scalar), compiled on the spot, so the ratio to it is measured under
   the same machine load.
 
+and it times the homogenized energy model (``hem.py``) in the same bank layout and on the same
+input, for each interaction density: the HEM takes no substeps (one exact update per sample), so
+its cost is reported per model-update, beside (6)'s per model-substep and both per model-sample.
+
 Timings are the minimum over repeats of the process CPU time (robust to other jobs
 sharing the cores); wall-clock figures are reported alongside.
 """
@@ -29,6 +33,7 @@ import time
 import numpy as np
 import scipy.integrate
 
+from . import hem
 from .hysteresis import DEFAULT_MAX_FIELD_STEP, HysteresisBatch, HysteresisParams, simulate_shared
 
 BANK_SIZE = 64
@@ -223,6 +228,8 @@ def run_benchmark(report) -> dict:
         results.update(solve_ivp_ratio=ratio, solve_ivp_seconds=seconds, solve_ivp_rtol=tolerance,
                        solve_ivp_max_error_over_Ms=error, bank_seconds=cpu)
 
+    results["hem_bank"] = time_hem_banks(field, ns, cpu / (field.size * batch.size) * 1e9, report)
+
     c_run = _c_reference(field, params, A_GRID, BANK_SIZE, DEFAULT_MAX_FIELD_STEP)
     if c_run is None:
         report("C -O3 reference: no working C compiler, skipped")
@@ -234,3 +241,30 @@ def run_benchmark(report) -> dict:
                f"bank/C = {ns / c_ns:.2f} (final M agrees to {agrees:.1e} Ms)")
         results.update(c_reference_ns_per_model_substep=c_ns, bank_over_c_reference=ns / c_ns)
     return results
+
+
+#: HEM parameters of the benchmark bank: the relays saturate within the input's 1e5 A/m, the coercive
+#: median spread over the bank as a over [6300, 7300] A/m is for (6).
+HEM_BENCH_PARAMS = dict(relay_magnetization=7.0e5, reversible_susceptibility=1.0, coercive_spread=0.6,
+                        interaction_scale=8000.0)
+
+
+def time_hem_banks(field, eq6_ns_per_substep, eq6_ns_per_sample, report, repeats=7) -> dict:
+    """ns per model-update of HEM banks of BANK_SIZE models (coercive median on a grid) for each interaction
+    density, and the ratios to (6)'s per-substep and per-sample costs measured on the same input."""
+    out = {}
+    for density in hem.INTERACTION_DENSITIES:
+        batch = hem.HEMBatch(coercive_median=np.linspace(3000.0, 5000.0, BANK_SIZE), interaction_density=density,
+                             **HEM_BENCH_PARAMS)
+        constants = batch.constants()
+        hem.simulate_shared(field[:3], batch.demagnetized(), constants, batch.kind)  # compile / load from cache
+        cpu, _, _ = _best_time(lambda: hem.simulate_shared(field, batch.demagnetized(), constants, batch.kind),
+                               repeats)
+        ns = cpu / (field.size * batch.size) * 1e9
+        out[density] = {"ns_per_model_update": ns, "nodes": batch.coercive_nodes,
+                        "ratio_to_eq6_per_substep": ns / eq6_ns_per_substep,
+                        "ratio_to_eq6_per_sample": ns / eq6_ns_per_sample}
+        report(f"HEM bank ({density} interaction density, {batch.coercive_nodes} coercive nodes): {ns:.1f} ns per "
+               f"model-update = {ns / eq6_ns_per_substep:.2f}x (6)'s model-substep, "
+               f"{ns / eq6_ns_per_sample:.2f}x (6)'s cost per model-sample on this input")
+    return out
