@@ -24,7 +24,8 @@ from .decide import (ACCEPT_DELTA_BIC, ACCEPT_IMPROVEMENT, EXPLAINED_RMSE, MATER
 from .fit import BASE_FIT_TOLERANCE, FitResult, Objective, _solve_linear_outputs, global_search, local_fit
 from .identifiability import (RATE_EFFECTS, channel_set, describe_direction, invisible_effects,
                               unidentified_directions)
-from .model import (EFFECT_PARAMETERS, EFFECT_SLOTS, MECHANICS_TOLERANCE, Model, Structure, applicable_effects,
+from .model import (DRIFT_NAMES, EFFECT_PARAMETERS, EFFECT_SLOTS, MAINS_NAMES, MECHANICS_TOLERANCE,
+                    SENSOR_MAP_NAMES, Model, Structure, applicable_effects,
                     base_parameters, extension_parameters, noise_level, slope_factor)
 from .recording import Recording, read_recording
 # physical_params lives in report (which explain needs); core re-exports it for its callers
@@ -251,6 +252,8 @@ def fit_candidate(recording, base: FitResult, effect: str, weights, fit_mask, ma
             scale=max(width, params["zeta_q"].scale))}, max_field_step)
     else:
         starts = _effect_starts(model, effect, base_values)
+        if effect in SENSOR_TERM_EFFECTS:
+            starts.append(_linear_sensor_start(model, effect, starts[0], fit_mask))
     best = None
     for start in starts:
         result = local_fit(model, weights, fit_mask, start, max_nfev=40)
@@ -326,6 +329,65 @@ def _quadratic_outputs(model, base_values, m, fit_mask):
     real = roots[np.abs(roots.imag) < 1e-9 * (np.abs(roots) + 1)].real
     M0 = float(real[np.argmin(np.abs(real - center))]) if real.size else center
     return dict(base_values, zeta_q=float(c2), zetahat=float(c1 + 2 * c2 * M0), M0=M0)
+
+
+#: Extensions that act on the recorded outputs only, linearly in their coefficients.
+SENSOR_TERM_EFFECTS = ("sensor_map", "sensor_drift", "mains_pickup")
+
+
+def _linear_sensor_start(model, effect, start, fit_mask):
+    """A start for an output-side extension with its coefficients solved by linear least squares
+    against the base model's prediction (each term is linear in its coefficient given the true
+    output), one channel at a time; clipped to the coefficients' bounds."""
+    out = dict(start)
+    magnetization = model.magnetization([start])[:, 0]  # the terms act after it: simulate once
+    predicted = model.predict(start, magnetization)
+    names = {"sensor_map": SENSOR_MAP_NAMES, "sensor_drift": DRIFT_NAMES, "mains_pickup": MAINS_NAMES}[effect]
+    for channel in model.channels:
+        coefficients = names[channel]
+        if not all(model.parameters[n].free for n in coefficients):
+            continue
+        columns = []
+        for name in coefficients:  # the response to a unit coefficient
+            columns.append(model.predict(dict(start, **{name: 1.0}), magnetization)[channel] - predicted[channel])
+        design = np.column_stack(columns)[fit_mask]
+        target = (model.recording.output(channel) - predicted[channel])[fit_mask]
+        if not np.all(np.isfinite(design)):
+            continue
+        solution, *_ = np.linalg.lstsq(design, target, rcond=None)
+        for name, value in zip(coefficients, solution):
+            p = model.parameters[name]
+            out[name] = float(np.clip(value, p.lower, p.upper))
+    return out
+
+
+def cross_start(candidates, base_heldout, weights, fit_mask, held_mask, limit: int = 5):
+    """Refit the runners-up from the best candidate's shared parameters (hysteresis, mechanics, gains).
+
+    Why: an extension that the base fit's basin does not suit (a strong M^2 law, say) can end far from
+    its own optimum, and then another extension that mimics it wins by optimization alone. Started
+    from where the winner put the shared parameters, such a candidate reaches its own optimum; the
+    decision then compares the two as they are (a tie gives ``ambiguous``). Only when the best
+    candidate lowers the base model's held-out RMSE by ``ACCEPT_IMPROVEMENT`` (else nothing is named
+    anyway); at most ``limit`` runners-up, best held-out first, those whose fitting-block SSE is above
+    the winner's by more than 5 %; a refit is kept only if it lowers its SSE."""
+    if len(candidates) < 2:
+        return
+    ranked = sorted(candidates, key=lambda c: c.heldout_rmse)
+    best = ranked[0]
+    if best.heldout_rmse > (1.0 - ACCEPT_IMPROVEMENT) * base_heldout:
+        return
+    shared = {n: v for n, v in best.fit.values.items() if n not in EFFECT_PARAMETERS[best.effect]}
+    for candidate in [c for c in ranked[1:] if c.fit.sse > 1.05 * best.fit.sse][:limit]:
+        model = candidate.fit.model
+        start = {**candidate.fit.values, **{n: v for n, v in shared.items() if n in model.parameters}}
+        if best.effect == "anhysteretic_shape" or candidate.effect == "anhysteretic_shape":
+            continue  # a and the slope mean different things under the two curves
+        refit = local_fit(model, weights, fit_mask, start, max_nfev=40)
+        if refit.sse < candidate.fit.sse:
+            candidate.fit = refit
+            candidate.heldout_rmse, _, candidate.heldout_residual = _residual(model, refit.values, weights, held_mask)
+            candidate.bic = refit.bic
 
 
 def _effect_starts(model, effect, base_values):
@@ -495,6 +557,7 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
         heldout, _, residual = _residual(fit.model, fit.values, weights, held_mask)
         candidates.append(Candidate(effect, fit, heldout, fit.bic, 0.0, False, heldout_residual=residual))
         bar.update(1)
+    cross_start(candidates, _rmse(base.model, base.values, weights, held_mask)[0], weights, fit_mask, held_mask)
 
     bar.set_postfix_str("decide")
     base, base_heldout = _guard_base(base, candidates, weights, fit_mask, held_mask)
