@@ -46,7 +46,8 @@ RESULTS = ROOT / "results" / "diagnose"
 FIGURES = ROOT.parent / "docs" / "figures" / "diagnose"
 RUNS = RESULTS / "concealed_study.csv"
 GENERATORS = ("own", "independent")
-FIELDS = ["generator", "channels", "effect", "in_vocabulary", "seed", "verdict", "tied", "confidence", "outcome",
+FIELDS = ["generator", "channels", "effect", "in_vocabulary", "seed", "verdict", "slot", "tied", "confidence", "outcome",
+          "structured_share", "prior_binds", "unidentified",
           "baseline_heldout", "verdict_heldout", "true_effect_improvement", "seconds", "samples", "sample_rate_hz",
           "noise_relative", "excitation", "load_average", "fits"]
 #: Confidence bins of the reliability table.
@@ -133,7 +134,10 @@ def run_one(job):
     tied = [c.effect for c in report.tied] if report.verdict == "ambiguous" else []
     true = next((c for c in report.candidates if c.effect == expected_name(effect)), None)
     return {"generator": generator, "channels": channels, "effect": effect, "in_vocabulary": in_vocabulary,
-            "seed": seed, "verdict": report.verdict, "tied": ";".join(tied), "confidence": report.confidence,
+            "seed": seed, "verdict": report.verdict, "slot": report.slot or "", "tied": ";".join(tied),
+            "confidence": report.confidence, "structured_share": report.material_structure.get("share", ""),
+            "prior_binds": report.identifiability["priors"].get("binds", ""),
+            "unidentified": ";".join("+".join(d["components"]) for d in report.identifiability["unidentified"]),
             "outcome": outcome(effect, in_vocabulary, report.verdict, tied),
             "baseline_heldout": report.baseline_heldout,
             "verdict_heldout": report.chosen.heldout_rmse if report.chosen else report.baseline_heldout,

@@ -33,6 +33,9 @@ _BROADBAND = "excite above the first resonance (a broadband or chirp drive up to
 _TEMPERATURE = "record the coil or rod temperature"
 _AMPLITUDES = "record loops at several amplitudes, down to a tenth of the largest (small loops show the low-field susceptibility)"
 _SLOW = "repeat the record at a lower and a higher drive frequency (rate effects scale with frequency)"
+_CALIBRATE_SENSOR = "calibrate the sensor against a reference (a static map of the sensor does not follow the drive)"
+_AFTER_MECHANICS = (_BROADBAND + ": a sensor's static map acts after the mechanics, a magnetostriction or "
+                    "stiffness law before them")
 
 CONFUSABLE = {
     "magnetization": {
@@ -41,6 +44,9 @@ CONFUSABLE = {
         frozenset({"thermal_drift", "anhysteretic_shape"}): _TEMPERATURE,
         frozenset({"small_loop", "anhysteretic_shape"}): _AMPLITUDES,
         frozenset({"small_loop", "field_bias"}): _AMPLITUDES,
+        frozenset({"sensor_map", "anhysteretic_shape"}): _CALIBRATE_SENSOR,
+        frozenset({"input_map", "anhysteretic_shape"}): "record the coil current and the field (a Hall probe) together",
+        frozenset({"sensor_drift", "thermal_drift"}): _TEMPERATURE,
     },
     "displacement": {
         frozenset({"small_loop", "anhysteretic_shape"}): _AMPLITUDES + ", and " + _RECORD_M,
@@ -58,12 +64,23 @@ CONFUSABLE = {
         frozenset({"delta_e", "field_bias"}): _RECORD_M,
         frozenset({"thermal_drift", "anhysteretic_shape"}): _TEMPERATURE,
         frozenset({"thermal_drift", "delta_e"}): _TEMPERATURE,
+        frozenset({"sensor_map", "quadratic_magnetostriction"}): _AFTER_MECHANICS,
+        frozenset({"sensor_map", "delta_e"}): _AFTER_MECHANICS,
+        frozenset({"sensor_map", "anhysteretic_shape"}): _RECORD_M + ", or " + _CALIBRATE_SENSOR,
+        frozenset({"sensor_map", "field_bias"}): _RECORD_M,
+        frozenset({"sensor_map", "small_loop"}): _RECORD_M,
+        frozenset({"input_map", "anhysteretic_shape"}): _RECORD_M,
+        frozenset({"input_map", "quadratic_magnetostriction"}): _RECORD_M,
+        frozenset({"sensor_drift", "thermal_drift"}): _TEMPERATURE,
     },
     "both": {
         frozenset({"sensor_lag", "rod_dynamics"}): _BROADBAND,
         frozenset({"delta_e", "rod_dynamics"}): _BROADBAND + " at two bias fields",
         frozenset({"small_loop", "anhysteretic_shape"}): _AMPLITUDES,
         frozenset({"thermal_drift", "anhysteretic_shape"}): _TEMPERATURE,
+        frozenset({"sensor_map", "quadratic_magnetostriction"}): _AFTER_MECHANICS,
+        frozenset({"sensor_map", "delta_e"}): _AFTER_MECHANICS,
+        frozenset({"sensor_drift", "thermal_drift"}): _TEMPERATURE,
     },
 }
 
