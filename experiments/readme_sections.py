@@ -6,7 +6,8 @@
 
 **Leaderboard.**
 Reads ``experiments/results/suite_v1.json`` and, where it exists, ``suite_v2.json`` (the full
-profiles, written by ``hyst-gym benchmark --suite v1|v2``), and lists for every task in the
+profiles, written by ``hyst-gym benchmark --suite v1|v2``; while v2's full profile has not been
+run, its reduced profile ``suite_v2_reduced.json``, labelled as such), and lists for every task in the
 suite its floor (value and kind), the best input without feedback (the reference) and the
 best agent of each kind, with the normalized score (1 = the floor, 0 = the reference). The
 full tables are on the site's results pages. ``tests/test_readme.py`` checks that the
@@ -31,7 +32,8 @@ RESULTS = ROOT / "experiments" / "results"
 README = ROOT / "README.md"
 AREA = "leaderboard"
 CLONE_AREA = "clone-size"
-SUITES = ("suite_v2", "suite_v1")
+#: result files per suite, first found wins (v2's reduced profile stands in until its full profile is run)
+SUITES = (("suite_v2", "suite_v2_reduced"), ("suite_v1",))
 #: agent kinds the brief table shows one best agent of (the full tables list every agent)
 KINDS = ("feedback", "rl")
 
@@ -42,7 +44,8 @@ def _best(agents: dict, kinds) -> tuple[str, dict] | None:
 
 
 def _cell(name: str, agent: dict) -> str:
-    normalized = agent.get("normalized", {}).get("iqm")
+    normalized = agent.get("normalized", {})
+    normalized = normalized.get("iqm", normalized.get("value"))  # v1 writes "iqm", v2 "value"
     score = f"; score {normalized:.2f}" if normalized is not None else ""
     return f"{name} {agent['iqm']:.3g}{score}"
 
@@ -66,18 +69,20 @@ def rows(result: dict) -> list[str]:
 
 def section() -> str:
     lines = ["Written by `python -m experiments.readme_sections` from the committed result files; "
-             "metric per task (lower is better), IQM over held-out draws; score = (reference − agent) / "
+             "metric per task (lower is better): IQM over held-out draws, or the RMS over them where the floor is "
+             "a Van Trees bound (a bound on a mean square); score = (reference − agent) / "
              "(reference − floor): 1 reaches the floor, 0 is the best input without feedback. Full tables: "
              "[docs/results/suite.md](docs/results/suite.md).", "",
              "| task | floor (kind) | reference: best without feedback | best feedback rule | best RL |",
              "|---|---|---|---|---|"]
     found = []
-    for stem in SUITES:
-        path = RESULTS / f"{stem}.json"
-        if path.exists():
+    for stems in SUITES:
+        path = next((RESULTS / f"{stem}.json" for stem in stems if (RESULTS / f"{stem}.json").exists()), None)
+        if path is not None:
             result = json.loads(path.read_text(encoding="utf-8"))
             lines += rows(result)
-            found.append(f"{result.get('suite', stem)} ({result.get('profile', '?')} profile)")
+            note = "" if result.get("profile") == "full" else f": {result.get('profile_note', '')}"
+            found.append(f"{result.get('suite', path.stem)} ({result.get('profile', '?')} profile{note})")
     if not found:
         raise FileNotFoundError(f"no suite result file in {RESULTS}")
     lines += ["", "Suites: " + ", ".join(found) + "."]
