@@ -46,7 +46,8 @@ RESULTS = ROOT / "results" / "diagnose"
 FIGURES = ROOT.parent / "docs" / "figures" / "diagnose"
 RUNS = RESULTS / "concealed_study.csv"
 GENERATORS = ("own", "independent")
-FIELDS = ["generator", "channels", "effect", "in_vocabulary", "seed", "verdict", "slot", "tied", "confidence", "outcome",
+FIELDS = ["generator", "channels", "effect", "in_vocabulary", "seed", "verdict", "slot", "tied", "confidence",
+          "outcome",
           "structured_share", "prior_binds", "unidentified",
           "baseline_heldout", "verdict_heldout", "true_effect_improvement", "seconds", "samples", "sample_rate_hz",
           "noise_relative", "excitation", "load_average", "fits"]

@@ -270,7 +270,8 @@ RESCUE_RMSE = 3.0
 #: Effects whose rescue searches the hysteresis parameters together with these of the effect
 #: (anhysteretic_shape and small_loop already search globally; thermal_drift's time constant and the
 #: rod mode's damping are search ranges, not physics, and stay at the local fit's values).
-RESCUED_EFFECTS = {"field_bias": ("H0",), "quadratic_magnetostriction": (), "delta_e": ("delta_e", "delta_e_linear"),
+RESCUED_EFFECTS = {"field_bias": ("H0",), "quadratic_magnetostriction": (),
+                   "delta_e": ("delta_e", "delta_e_linear"),
                    "eddy_current": ("k_e",), "thermal_drift": ("heating",), "rod_dynamics": ("f2",),
                    "sensor_lag": (), "input_map": ("input_saturation", "input_cubic"), "sensor_map": ()}
 

@@ -348,7 +348,8 @@ def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False, b
         # within the noise level, yet a material share of the residual is predictable: something is left out
         lo, hi = base_structure["ci95"]
         notes.append(f"the base model is within {base_heldout:.2f} noise units of the held-out block, but "
-                     f"{100 * base_structure['share']:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}] of the noise power in its "
+                     f"{100 * base_structure['share']:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}] of the noise power "
+                     "in its "
                      f"residual is structured (material from {100 * MATERIAL_SHARE:.0f} %): the model leaves out "
                      "something that no candidate explains")
         margin = (base_structure["share"] - MATERIAL_SHARE) / MATERIAL_SHARE

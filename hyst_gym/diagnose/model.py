@@ -547,7 +547,8 @@ def applicable_effects(recording: Recording, structure: Structure) -> list[str]:
                "input_map", "sensor_map", "sensor_drift"]
     duration = float(recording.time[-1] - recording.time[0])
     nyquist = 0.5 / float(np.median(np.diff(recording.time)))
-    if duration * 50.0 >= MAINS_MIN_CYCLES and nyquist > 3 * 60.0 and recording.metadata.get("time_axis") != "synthetic":
+    rated = recording.metadata.get("time_axis") != "synthetic"
+    if duration * 50.0 >= MAINS_MIN_CYCLES and nyquist > 3 * 60.0 and rated:
         effects.append("mains_pickup")
     if has_x and structure.transducer != "lumped_nonlinear":
         effects.insert(2, "quadratic_magnetostriction")

@@ -33,9 +33,9 @@ EFFECT_WORDS = {
     "small_loop": "small-loop (Rayleigh) behaviour: a reversible low-field susceptibility chi_r that (6) lacks, "
                   "fading at saturation",
 }
-UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "heating_exponent": "", "tau_th": "s", "beta_Ms": "1/K", "tau_m": "s", "tau_x": "s",
-         "zeta_q": "m/s^2 per (A/m)^2", "f2": "Hz", "damping2": "", "g2": "", "delta_e": "", "delta_e_linear": "", "chi_r": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "",
-         "alpha": ""}
+UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "heating_exponent": "", "tau_th": "s", "beta_Ms": "1/K",
+         "tau_m": "s", "tau_x": "s", "zeta_q": "m/s^2 per (A/m)^2", "f2": "Hz", "damping2": "", "g2": "",
+         "delta_e": "", "delta_e_linear": "", "chi_r": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "", "alpha": ""}
 
 
 def physical_params(fit: FitResult) -> dict:
