@@ -32,6 +32,14 @@ Method
       each reversal), rayleigh_field = kappa k(T), kappa fitted (10 params);
     - ``smooth_pinning``: the same with kappa = 1, rayleigh_field = k(T), the pinning field itself
       (9 params, no parameter of its own).
+    - ``hem_critical``: the homogenized energy model (``hyst_gym.physics.hem``, normal interaction
+      density, 16 coercive nodes) with critical scaling near the Curie point: relay (spontaneous)
+      magnetization M_R = M0 (1 - T/Tc)^beta, the pinning -- coercive median and interaction scale --
+      following it as (M_R/M0)^n_c and (M_R/M0)^n_b, the reversible susceptibility diverging as
+      chi0 (1 - T/Tc)^-gamma, spread of ln Hc constant (9 params);
+    - ``hem_smooth``: the HEM with M_R = M0 (1 - T/Tc)^beta and log chi, log Hc, log b quadratic in
+      (T - T_ref)/10 K (12 params).
+    Each HEM record starts from a state of uniform play outputs whose M is the measured M0.
   A per-temperature fit (five constant parameters at one temperature, all amplitudes) gives
   the floor that no temperature law can beat.
 * Fit: ``scipy.optimize.least_squares`` (trf) in log coordinates for positive parameters
@@ -43,8 +51,13 @@ Method
   record (from the first positive peak to the end; the initial curve is simulated but not
   scored), on the subsampled points.
 * Protocol: a fit on all temperatures (role ``fitted``), then leave-one-out over each
-  interior temperature (-30 ... +5 C): fit the other seven, predict the held-out
-  temperature at every amplitude (role ``predicted``).
+  interior temperature (-30 ... +5 C) and the warmest (+15 C, 3.3 K below Tc: an extrapolation
+  towards the Curie point): fit the other seven, predict the held-out temperature at every
+  amplitude (role ``predicted``).
+* SELECTION RULE, fixed before the HEM laws were run: the law with the lowest mean held-out NRMSE
+  over every left-out shipped temperature and amplitude is chosen; its fit on all shipped
+  temperatures predicts any other file (``--predict FILE``, e.g. held-back temperatures), which the
+  choice never reads.
 
     .venv/bin/python -m experiments.gd_temperature [--data FILE] [--predict FILE] [--json FILE] [--quick]
 """
@@ -64,10 +77,11 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import theilslopes
 
+from hyst_gym.physics.hem import HEMBatch, simulate_hem_batch, state_with_magnetization
 from hyst_gym.physics.hysteresis import HysteresisBatch, simulate_batch
 from hyst_gym.physics.temperature_laws import (
-    GD_CURIE_K, PARAMETER_NAMES, Constant, CriticalPowerLaw, FollowsMs, LinearInT, LogPolynomial, TemperatureLaws,
-    celsius_to_kelvin,
+    GD_CURIE_K, HEM_PARAMETER_NAMES, PARAMETER_NAMES, Constant, CriticalPowerLaw, FollowsMs, HEMTemperatureLaws,
+    LinearInT, LogPolynomial, TemperatureLaws, celsius_to_kelvin,
 )
 
 MU0 = 4e-7 * np.pi
@@ -78,6 +92,7 @@ FIGURES_DIR = ROOT / "docs" / "figures" / "gd_temperature"
 AMPLITUDES = ("major", "mid", "minor")
 T_REF_K = celsius_to_kelvin(-10.0).item()  # reference temperature of eq. (4), K
 ANHYSTERETIC = "langevin"
+HEM_NODES = 16  # coercive nodes of the HEM families
 FD_STEP = 1e-4  # forward-difference step in fit coordinates (log or linear)
 
 
@@ -219,6 +234,9 @@ class LawFamily:
     #: the reversal-dependent pinning (``hysteresis.REVERSAL_PINNING``), rayleigh_field = kappa*k(T):
     #: kappa fixed (a number), fitted (the name of its parameter), or None for model (6)'s pinning
     rayleigh_ratio: Optional[object] = None
+    #: the hysteresis model: "domain_wall" (6) (``build`` gives TemperatureLaws) or the homogenized energy
+    #: model of ``hyst_gym.physics.hem`` with this interaction density (``build`` gives HEMTemperatureLaws)
+    model: str = "domain_wall"
 
     def to_z(self, values) -> np.ndarray:
         v = np.asarray(values, dtype=np.float64)
@@ -297,6 +315,40 @@ FAMILIES = {
 }
 #: The reversal-dependent pinning with no parameter of its own: the irreversible term builds up over
 #: a field change of the pinning field k(T) itself (kappa = 1).
+def _hem_critical(p):
+    ms = CriticalPowerLaw(p["M0"], GD_CURIE_K, p["beta"])
+    return HEMTemperatureLaws(relay_magnetization=ms,
+                              reversible_susceptibility=CriticalPowerLaw(p["chi0"], GD_CURIE_K, -p["gamma"]),
+                              coercive_median=FollowsMs(p["Hc0"], p["n_c"]), coercive_spread=Constant(p["sigma"]),
+                              interaction_scale=FollowsMs(p["b0"], p["n_b"]))
+
+
+def _hem_smooth(p):
+    ms = CriticalPowerLaw(p["M0"], GD_CURIE_K, p["beta"])
+    return HEMTemperatureLaws(relay_magnetization=ms,
+                              reversible_susceptibility=LogPolynomial((p["lx0"], p["lx1"], p["lx2"]), T_REF_K, 10.0),
+                              coercive_median=LogPolynomial((p["lh0"], p["lh1"], p["lh2"]), T_REF_K, 10.0),
+                              coercive_spread=Constant(p["sigma"]),
+                              interaction_scale=LogPolynomial((p["lb0"], p["lb1"], p["lb2"]), T_REF_K, 10.0))
+
+
+#: The homogenized energy model with critical scaling near the Curie point: the relay (spontaneous)
+#: magnetization (1 - T/Tc)^beta, the pinning (coercive median and interaction scale) following it as
+#: powers of the reduced magnetization, the reversible susceptibility diverging as (1 - T/Tc)^-gamma.
+FAMILIES["hem_critical"] = LawFamily(
+    "hem_critical", "HEM: M_R = M0 (1-T/Tc)^beta; Hc, b ~ (M_R/M0)^n; chi = chi0 (1-T/Tc)^-gamma; sigma constant",
+    ("M0", "beta", "chi0", "gamma", "Hc0", "n_c", "b0", "n_b", "sigma"),
+    (2.0e6, 0.3, 1.0, 1.0, 2000.0, 1.0, 5000.0, 1.0, 0.6),
+    (1e5, 0.05, 1e-3, 0.0, 1.0, -4.0, 1.0, -4.0, 0.05), (2e7, 1.5, 1e3, 3.0, 1e5, 6.0, 1e5, 6.0, 3.0),
+    (True, False, True, False, True, False, True, False, True), _hem_critical, model="normal")
+#: The same with smooth (log-quadratic in T) laws for the susceptibility and the pinning.
+FAMILIES["hem_smooth"] = LawFamily(
+    "hem_smooth", "HEM: M_R = M0 (1-T/Tc)^beta; log chi, log Hc, log b quadratic in (T - T_ref)/10 K; sigma constant",
+    ("M0", "beta", "lx0", "lx1", "lx2", "lh0", "lh1", "lh2", "lb0", "lb1", "lb2", "sigma"),
+    (2.0e6, 0.3, 0.0, 0.0, 0.0, float(np.log(1000.0)), 0.0, 0.0, float(np.log(4000.0)), 0.0, 0.0, 0.6),
+    (1e5, 0.05, -8.0, -3.0, -3.0, 0.0, -3.0, -3.0, 0.0, -3.0, -3.0, 0.05),
+    (2e7, 1.5, 8.0, 3.0, 3.0, float(np.log(1e5)), 3.0, 3.0, float(np.log(1e5)), 3.0, 3.0, 3.0),
+    (True, False, False, False, False, False, False, False, False, False, False, True), _hem_smooth, model="normal")
 FAMILIES["smooth_pinning"] = replace(
     FAMILIES["smooth"], name="smooth_pinning", rayleigh_ratio=1.0,
     description="smooth, plus reversal-dependent pinning over the pinning field: rayleigh_field = k(T)")
@@ -320,12 +372,31 @@ def parameter_table(family: LawFamily, zs: np.ndarray, temperatures_K: np.ndarra
     return out
 
 
+def simulate_records_hem(records: Sequence[Record], family: LawFamily, zs: np.ndarray) -> List[Optional[np.ndarray]]:
+    """:func:`simulate_records` for a HEM family: each record's bank starts at its measured M0."""
+    laws = [family.build(family.from_z(z)) for z in zs]
+    out = []
+    for r in records:
+        try:
+            values = [law(np.array([r.temperature_K])) for law in laws]
+            batch = HEMBatch(*(np.array([v[n][0] for v in values]) for n in HEM_PARAMETER_NAMES), family.model,
+                             HEM_NODES)
+        except ValueError:
+            out.append(None)
+            continue
+        state = state_with_magnetization(batch, float(r.field[0]), r.M0)
+        out.append(MU0 * (r.field[:, None] + simulate_hem_batch(r.field, batch, state)))
+    return out
+
+
 def simulate_records(records: Sequence[Record], family: LawFamily, zs: np.ndarray) -> List[Optional[np.ndarray]]:
     """Model B (T) for each record and each row of ``zs``: list of arrays (n_samples, len(zs)).
 
     A record whose temperature gives invalid parameters (e.g. T >= Tc) yields None.
     """
     zs = np.atleast_2d(zs)
+    if family.model != "domain_wall":
+        return simulate_records_hem(records, family, zs)
     temps = np.array(sorted({r.temperature_K for r in records}))
     table = parameter_table(family, zs, temps)
     out = []
@@ -442,7 +513,9 @@ def run_study(records: Sequence[Record], families: Sequence[str], holdouts: Sequ
         for T in holdouts:
             train = [r for r in records if r.temperature_C != T]
             test = [r for r in records if r.temperature_C == T]
-            fit = fit_family(train, family, x0=[full.params[n] for n in family.names], max_nfev=max_nfev)
+            # from the family's own start, not from the fit that saw the left-out temperature: a fit that
+            # stalls near its start would otherwise carry that temperature into its "prediction"
+            fit = fit_family(train, family, max_nfev=max_nfev)
             out["fits"].append({**fit.__dict__, "protocol": f"loo{T:+g}"})
             rows = score(test, family, fit, "predicted")
             out["rows"] += [{**row, "protocol": "loo"} for row in rows]
@@ -514,6 +587,8 @@ FAMILY_LABELS = {
     "smooth_small_loop": "smooth laws + small-loop extension (chi_r following Ms)",
     "smooth_reversal": "smooth laws + reversal-dependent pinning (rayleigh_field = kappa k, kappa fitted)",
     "smooth_pinning": "smooth laws + reversal-dependent pinning (rayleigh_field = k, no new parameter)",
+    "hem_critical": "HEM, critical scaling: M_R ~ (1-T/Tc)^beta, pinning ~ M_R^n, chi ~ (1-T/Tc)^-gamma",
+    "hem_smooth": "HEM, M_R ~ (1-T/Tc)^beta, smooth laws for chi and the pinning",
 }
 
 
@@ -545,10 +620,36 @@ def summary_table(study: dict, families: Sequence[str]) -> str:
     means = {f: m for f, m in means.items() if np.isfinite(m)}
     if means:
         chosen = min(means, key=means.get)
-        lines.append(f"\nLowest mean held-out error over every left-out temperature and amplitude: "
-                     f"**{FAMILY_LABELS.get(chosen, chosen)}**.")
+        lines.append(f"\nLowest mean held-out error over every left-out temperature and amplitude (the selection "
+                     f"rule): **{FAMILY_LABELS.get(chosen, chosen)}**.")
+        # beside it, the best law of the other model (domain wall or HEM), for comparison
+        other_model = [f for f in means if FAMILIES[f].model != FAMILIES[chosen].model]
+        compared = [chosen] + ([min(other_model, key=means.get)] if other_model else [])
+        lines += ["", "Each left-out temperature, the chosen law and the best of the other model:", "",
+                  per_temperature_table(study, compared)]
     lines.append(f"\nNRMSE of B in %, worst held-out temperature per amplitude. Fit times: wall clock, one "
                  f"process on {os.cpu_count()} cores at 1-min load average {study.get('load_average', float('nan')):.1f}.")
+    return "\n".join(lines)
+
+
+def per_temperature_table(study: dict, families: Sequence[str]) -> str:
+    """Held-out NRMSE of B (%) at every left-out temperature and amplitude, one column pair per family,
+    with each temperature's distance below the Curie point and the fit time of that fold."""
+    rows = study["rows"]
+    temps = sorted({r["temperature_C"] for r in rows if r["protocol"] == "loo"})
+    head = "| left out (°C) | Tc − T (K) | " + " | ".join(
+        f"{f}: {amp}" for f in families for amp in AMPLITUDES) + " | " + " | ".join(f"{f}: fit time" for f in families)
+    lines = [head + " |", "|---|---|" + "---|" * (len(families) * (len(AMPLITUDES) + 1))]
+    for T in temps:
+        cells = []
+        for f in families:
+            for amp in AMPLITUDES:
+                hit = [r["nrmse"] for r in rows if r["law"] == f and r["temperature_C"] == T and r["amplitude"] == amp
+                       and r["protocol"] == "loo" and r["nrmse"] is not None]
+                cells.append(f"{100 * hit[0]:.2f}" if hit else "-")
+        times = [next((f"{x['seconds']:.1f} s" for x in study["fits"] if x["family"] == f
+                       and x["protocol"] == f"loo{T:+g}"), "-") for f in families]
+        lines.append(f"| {T:+g} | {GD_CURIE_K - float(celsius_to_kelvin(T)):.1f} | " + " | ".join(cells + times) + " |")
     return "\n".join(lines)
 
 
@@ -561,7 +662,8 @@ def make_figure(records, study, families, held_out_T, path):
     fig, axes = plt.subplots(1, 4, figsize=(18, 4.2))
     test = [r for r in records if r.temperature_C == held_out_T]
     colors = {"eq4": "tab:red", "eq4_critical_ms": "tab:orange", "critical": "tab:blue", "smooth": "tab:green",
-              "smooth_small_loop": "tab:olive", "smooth_reversal": "tab:purple", "smooth_pinning": "tab:brown"}
+              "smooth_small_loop": "tab:olive", "smooth_reversal": "tab:purple", "smooth_pinning": "tab:brown",
+              "hem_critical": "tab:cyan", "hem_smooth": "tab:pink"}
     for ax, r in zip(axes[:3], test):
         ax.plot(r.field[r.loop_start:] / 1e3, r.B[r.loop_start:], "k-", lw=2.5, alpha=0.35, label="measured")
         for f in families:
@@ -633,8 +735,10 @@ def main(argv=None) -> int:
         bad_input(f"--data needs at least 3 temperatures, got {len(temps)}")
     interior = temps[1:-1]
     families = ("eq4", "smooth") if args.quick else ("eq4", "eq4_critical_ms", "critical", "smooth",
-                                                     "smooth_small_loop", "smooth_reversal", "smooth_pinning")
-    holdouts = interior[::2] if args.quick else interior
+                                                     "smooth_small_loop", "smooth_reversal", "smooth_pinning",
+                                                     "hem_critical", "hem_smooth")
+    # every interior temperature, and the warmest (nearest the Curie point: an extrapolation towards Tc)
+    holdouts = interior[::2] if args.quick else interior + temps[-1:]
     start = time.perf_counter()
     study = run_study(records, families, holdouts, predict_records, max_nfev=60 if args.quick else 200)
     study["total_seconds"] = time.perf_counter() - start

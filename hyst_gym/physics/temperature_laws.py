@@ -1,4 +1,4 @@
-"""Temperature laws for the parameters of the domain-wall model (6).
+"""Temperature laws for the parameters of the domain-wall model (6) and of the homogenized energy model.
 
 A :class:`TemperatureLaws` maps an absolute temperature ``T`` (K, scalar or array) to
 the five parameters ``a, k, c, Ms, alpha`` of :func:`hyst_gym.physics.hysteresis.
@@ -18,7 +18,9 @@ Laws (pick one per parameter):
   ``beta ~ 0.37`` (e.g. C. Kittel, *Introduction to Solid State Physics*, ch. on
   ferromagnetism; S. Blundell, *Magnetism in Condensed Matter*, 2001, sec. 6);
   the gadolinium source of ``data/real/gd-temperature`` fits ``beta = 0.281``
-  (Nowicki, Szewczyk, Kolano-Burian, Charubin, Zenodo 10.5281/zenodo.21431501).
+  (Nowicki, Szewczyk, Kolano-Burian, Charubin, Zenodo 10.5281/zenodo.21431501). With a negative
+  exponent ``-gamma`` it is the critical divergence of a susceptibility (gamma = 1.39 for the 3-D
+  Heisenberg class, 1 in mean-field theory).
 * :class:`FollowsMs` -- ``p(T) = p0 * (Ms(T)/Ms(0))**n``: a parameter tied to the
   reduced spontaneous magnetization, as in the temperature-dependent Jiles-Atherton
   models where ``a``, ``k`` and ``alpha`` scale with powers of the reduced
@@ -196,8 +198,53 @@ class TemperatureLaws:
                                anhysteretic, values["chi_r"])
 
 
+HEM_PARAMETER_NAMES = ("relay_magnetization", "reversible_susceptibility", "coercive_median", "coercive_spread",
+                       "interaction_scale")
+
+
+@dataclass(frozen=True)
+class HEMTemperatureLaws:
+    """One law per parameter of the homogenized energy model (:class:`~hyst_gym.physics.hem.HEMParams`);
+    :meth:`__call__` maps T (K) to parameter arrays. The reduced magnetization that :class:`FollowsMs`
+    laws see is ``relay_magnetization(T)/relay_magnetization(0 K)``.
+
+    Defaults are the critical scaling a physicist uses near the Curie point ``Tc`` (gadolinium's):
+    the relay magnetization, the spontaneous one, as ``(1 - T/Tc)^beta``; the pinning -- coercive
+    median and interaction scale -- following it, ``Hc ~ Ms^n`` (n = 2 is the anisotropy-controlled
+    pinning of domain walls, K1 ~ Ms^3 over the Ms of the Zeeman energy, Callen-Callen); the reversible
+    susceptibility diverging as ``(1 - T/Tc)^-gamma`` (gamma = 1.39 for the 3-D Heisenberg class; a
+    :class:`CriticalPowerLaw` with a negative exponent). Values are illustrative, not fitted.
+    """
+
+    relay_magnetization: object = field(default_factory=lambda: CriticalPowerLaw(2.0e6, GD_CURIE_K, 0.3))
+    reversible_susceptibility: object = field(default_factory=lambda: CriticalPowerLaw(1.0, GD_CURIE_K, -1.39))
+    coercive_median: object = field(default_factory=lambda: FollowsMs(2000.0, 2.0))
+    coercive_spread: object = field(default_factory=lambda: Constant(0.6))
+    interaction_scale: object = field(default_factory=lambda: FollowsMs(5000.0, 1.0))
+
+    def reduced_ms(self, T):
+        """``relay_magnetization(T)/relay_magnetization(0 K)`` (dimensionless)."""
+        T = _kelvin(T)
+        return self.relay_magnetization(T, None) / float(np.asarray(self.relay_magnetization(np.array(1e-12), None)))
+
+    def __call__(self, T):
+        """Dict of the five HEM parameters, float arrays shaped like ``T`` (K); valid below ``Tc`` only."""
+        T = _kelvin(T)
+        reduced = self.reduced_ms(T)
+        return {name: np.broadcast_to(np.asarray(getattr(self, name)(T, reduced), dtype=np.float64), T.shape).copy()
+                for name in HEM_PARAMETER_NAMES}
+
+    def batch(self, T, interaction_density="normal", coercive_nodes=16):
+        """A :class:`~hyst_gym.physics.hem.HEMBatch` with one model per temperature (K)."""
+        from .hem import HEMBatch
+
+        values = self(np.atleast_1d(np.asarray(T, dtype=np.float64)).ravel())
+        return HEMBatch(*(values[n] for n in HEM_PARAMETER_NAMES), interaction_density, coercive_nodes)
+
+
 __all__ = [
-    "GD_CURIE_K", "ZERO_CELSIUS_K", "Constant", "CriticalPowerLaw", "FollowsMs", "LinearInT",
+    "GD_CURIE_K", "HEM_PARAMETER_NAMES", "HEMTemperatureLaws", "ZERO_CELSIUS_K", "Constant", "CriticalPowerLaw",
+    "FollowsMs", "LinearInT",
     "LogPolynomial", "PARAMETER_NAMES", "TemperatureLaws", "celsius_to_kelvin", "critical_power_law",
     "linear_in_temperature", "log_polynomial", "power_of_ratio",
 ]
