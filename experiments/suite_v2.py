@@ -36,8 +36,8 @@ agent's normalized score has its CI below 0.7 (it leaves at least 30 % of the ga
 Profiles: ``quick`` (<= 10 min: 16 held-out draws, small searches, the committed RL models, no
 training), ``reduced`` (this session's measurement: 24 held-out draws, RL trained at small budgets,
 3 seeds), ``full`` (50 draws, 10 seeds; not run yet). Writes ``experiments/results/suite_v2[_PROFILE].json``
-and ``.md``, ``docs/figures/suite_v2[_PROFILE].png`` and (full profile) the ``suite-v2`` section of
-``docs/results/suite.md``.
+and ``.md``, ``docs/figures/suite_v2[_PROFILE].png`` and (full and reduced profiles) the ``suite-v2``
+section of ``docs/results/suite.md``.
 """
 
 from __future__ import annotations
@@ -639,6 +639,15 @@ def figure(data: dict, path: pathlib.Path) -> None:
     plt.close(fig)
 
 
+def write_docs(data: dict, figure_path: pathlib.Path, docs: pathlib.Path = DOCS_PAGE) -> None:
+    """The ``suite-v2`` section of the results page: the profile's table and figure (a full run's
+    replaces a reduced one's; the profile note says which it is)."""
+    from experiments.report_markdown import update_readme
+
+    head = f"Profile `{data['profile']}`: {data['profile_note']}.\n\n" if data["profile"] != "full" else ""
+    update_readme(docs, head + markdown(data) + f"\n![suite v2](../figures/{figure_path.name})\n", area=DOCS_AREA)
+
+
 PROFILE_NOTES = {"full": "the suite's own decision", "quick": "a smoke run on fewer draws with the committed RL models; "
                  "not the suite's decision", "reduced": "a reduced-budget measurement, NOT the full profile: fewer "
                  "draws, 3 RL seeds at small budgets"}
@@ -680,9 +689,7 @@ def run_suite(profile: Profile, task_ids, out: pathlib.Path, figure_path: pathli
     (out / f"{stem}.md").write_text(text)
     figure(data, figure_path)
     if docs is not None:
-        from experiments.report_markdown import update_readme
-
-        update_readme(docs, text + f"\n![suite v2](../figures/{figure_path.name})\n", area=DOCS_AREA)
+        write_docs(data, figure_path, docs)
     log(f"[suite v2] wrote {out / f'{stem}.json'} in {data['wall_s'] / 60:.1f} min")
     return data
 
@@ -703,7 +710,7 @@ def configure_parser(parser) -> None:
     parser.add_argument("--reduced", action="store_true", help="v2 only: the reduced-budget measurement "
                         "(24 draws, RL at small budgets, 3 seeds); writes suite_v2_reduced.*")
     parser.add_argument("--no-docs", action="store_true", help="v2 only: do not rewrite the suite-v2 section of "
-                        "docs/results/suite.md (only the full profile writes it)")
+                        "docs/results/suite.md (the full and reduced profiles write it)")
 
 
 def _options(args):
@@ -718,7 +725,8 @@ def _options(args):
         raise UsageError(f"--tasks: unknown v2 task id(s) {unknown or args.tasks!r}; expected some of {sorted(TASKS_V2)}")
     stem = "suite_v2" if profile.name == "full" else f"suite_v2_{profile.name}"
     figure_path = pathlib.Path(args.figure) if args.figure else FIGURES / f"{stem}.png"
-    docs = None if (args.no_docs or profile.name != "full") else DOCS_PAGE
+    # the reduced profile writes the page while the full one has not been run; the quick one never does
+    docs = None if (args.no_docs or profile.name == "quick") else DOCS_PAGE
     return profile, task_ids, pathlib.Path(args.out), figure_path, docs
 
 

@@ -1,0 +1,81 @@
+"""The suite v2 script's statistics and decisions (issue 23), on synthetic per-draw scores whose
+answers are computed here by hand; the command line's errors."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+import pytest
+
+from experiments import suite_v2
+
+CALIBRATE = "hyst_gym/HotCalibrate-v0"
+
+
+def test_bootstrap_value_is_the_statistic_and_the_interval_holds_it():
+    rng = np.random.default_rng(0)
+    scores = rng.gamma(4.0, 1.0, size=(3, 40))
+    stat = lambda m: float(np.sqrt(np.mean(m)))  # noqa: E731
+    value, (low, high) = suite_v2.bootstrap(stat, 400, scores)
+    assert value == pytest.approx(stat(scores)) and low < value < high
+    assert suite_v2.bootstrap(stat, 400, scores) == (value, [low, high])   # seeded: the same numbers
+
+
+def _evaluated(floor_rms, per_draw_rms, n_draws, seed=1):
+    """Per-draw mean squares that scatter around the given RMS values, one run per agent."""
+    rng = np.random.default_rng(seed)
+    agents = {}
+    for name, (kind, rms) in per_draw_rms.items():
+        agents[name] = (kind, (rms ** 2) * rng.uniform(0.9, 1.1, n_draws))
+    return {"floor": {"kind": "bound", "value": floor_rms}, "agents": agents, "rl": {}, "tuned": {},
+            "designs": {}, "draws": {}, "wall_s": 0.0}
+
+
+def test_headroom_normalized_score_and_rl_gap_match_hand_computation():
+    """Floor 100 (a bound), best open loop 150, a feedback rule 140, RL 120: headroom 150/100 - 1 = 0.5,
+    the RL agent's normalized score (150 - 120)/(150 - 100) = 0.6, so it leaves 40 % of the gap."""
+    profile = suite_v2.PROFILES["quick"]
+    evaluated = _evaluated(100.0, {"ramp": ("open_loop", 150.0), "tuned": ("open_loop", 160.0),
+                                   "thermostat": ("feedback", 140.0), "ppo": ("rl", 120.0)}, profile.heldout)
+    summary = suite_v2.summarize_task(CALIBRATE, evaluated, profile)
+    assert summary["reference"] == "ramp" and summary["statistic"] == "rms"
+    assert summary["headroom"]["value"] == pytest.approx(0.5, abs=0.02)
+    assert summary["in_suite"] and summary["headroom"]["ci"][0] > 0.25
+    ppo = summary["agents"]["ppo"]["normalized"]
+    assert ppo["value"] == pytest.approx(0.6, abs=0.04) and ppo["ci"][0] < 0.6 < ppo["ci"][1]
+    gap = summary["rl_gap"]
+    assert gap["best"] == "ppo" and gap["leaves_30_percent"]
+    assert summary["agents"]["ramp"]["normalized"]["value"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_a_task_without_headroom_stays_out():
+    profile = suite_v2.PROFILES["quick"]
+    summary = suite_v2.summarize_task(CALIBRATE, _evaluated(100.0, {"ramp": ("open_loop", 110.0)}, profile.heldout),
+                                     profile)
+    assert not summary["in_suite"] and "does not lie above 25 %" in summary["reason"]
+    assert summary["rl_gap"] is None
+
+
+def test_flatness_runs_follow_the_profile():
+    """Every algorithm at its budget on every seed, plus each flatness run (factor x budget) on the first seeds."""
+    profile = suite_v2.PROFILES["reduced"]
+    runs = suite_v2.rl_runs(profile, CALIBRATE)
+    for algo, steps in profile.rl_steps.items():
+        assert sum(1 for a, _, s in runs if a == algo and s == steps) == profile.rl_seeds
+        factor, seeds, tasks = profile.flat[algo]
+        longer = [seed for a, seed, s in runs if a == algo and s == factor * steps]
+        assert longer == (list(range(seeds)) if tasks is None or CALIBRATE in tasks else [])
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--suite", "v2", "--tasks", "hyst_gym/Nope-v0"], "--tasks: unknown v2 task id"),
+    (["--suite", "v2", "--quick", "--reduced"], "--quick and --reduced exclude each other"),
+    (["--suite", "v3"], "--suite: unknown suite version"),
+])
+def test_bad_arguments_give_one_line_and_status_2(argv, message, capsys):
+    parser = argparse.ArgumentParser()
+    suite_v2.configure_parser(parser)
+    assert suite_v2.main(parser.parse_args(argv)) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err
