@@ -104,8 +104,8 @@ def test_point_symmetric_and_saturating():
     field = np.concatenate([np.linspace(0, 400.0, 80), np.linspace(400.0, -400.0, 160), np.linspace(-400.0, 400.0, 160)])
     up = simulate_hem(field, **PARAMS)
     down = simulate_hem(-field, **PARAMS)
-    # to the compiled erf's absolute accuracy (1.2e-7) for the normal density
-    np.testing.assert_allclose(down, -up, rtol=0, atol=2e-7 * PARAMS["relay_magnetization"])
+    # to twice the compiled erf's absolute accuracy (1.5e-7) for the normal density
+    np.testing.assert_allclose(down, -up, rtol=0, atol=3e-7 * PARAMS["relay_magnetization"])
     # far beyond every coercive and interaction field the relays are all up: only the reversible slope is left
     relay_part = simulate_hem(np.array([0.0, 1e6]), **PARAMS)[-1] - PARAMS["reversible_susceptibility"] * 1e6
     assert relay_part == pytest.approx(PARAMS["relay_magnetization"], rel=1e-9)
@@ -165,4 +165,4 @@ def test_compiled_erf_is_within_its_stated_accuracy():
 
     x = np.linspace(-8.0, 8.0, 20001)
     errors = np.array([erf_inline(v) - math.erf(v) for v in x])
-    assert np.max(np.abs(errors)) < 1.2e-7
+    assert np.max(np.abs(errors)) < 1.5e-7  # Abramowitz and Stegun 7.1.26
