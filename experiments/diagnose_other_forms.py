@@ -1,0 +1,195 @@
+"""Blind study of the mismatch tool on recordings whose physics takes other forms than its own (issue 22).
+
+Recordings come from :mod:`experiments.other_forms` (forms the tool does not use, other
+numerics). For every case, channel set the case can show and seed, the recording is written
+to a temporary CSV and diagnosed blind with ``hyst_gym.diagnose.diagnose(path, progress=False)``.
+Outcome of a recording (from ``report.to_json()``):
+
+* ``right`` -- the verdict is in the case's set of right verdicts;
+* ``ambiguous_with_truth`` -- ``ambiguous`` with a right name among ``candidates_tied``;
+* ``wrong_name`` -- a single effect name outside the set;
+* ``missed`` -- ``none`` for a case with an effect;  ``other`` -- anything else (e.g.
+  ``unexplained`` or ``ambiguous`` without the truth for a nameable effect, ``unexplained`` on
+  ``none_other_numerics``, or ``error`` if the tool raised).
+
+Writes ``experiments/results/diagnose/other_forms.json`` (per-recording rows and summaries) and
+``other_forms.md`` (tables per channel set, per case, per case x channel set, per form, rows)::
+
+    nice -n 10 .venv/bin/python -m experiments.diagnose_other_forms --seeds 2 --jobs 1
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+from experiments import other_forms
+
+ROOT = Path(__file__).resolve().parent
+RESULTS = ROOT / "results" / "diagnose"
+OUTCOMES = ("right", "ambiguous_with_truth", "wrong_name", "missed", "other")
+
+
+def jobs_for(cases, channel_sets, seeds, first_seed, samples):
+    """Every (case, channels, seed, samples) the case can show; skipped pairs listed apart."""
+    jobs, skipped = [], []
+    for case in cases:
+        for channels in channel_sets:
+            if channels not in other_forms.CASES[case].channel_sets:
+                skipped.append(f"{case}/{channels}")
+                continue
+            jobs += [(case, channels, seed, samples) for seed in range(first_seed, first_seed + seeds)]
+    return jobs, skipped
+
+
+def outcome(case: str, verdict: str, tied) -> str:
+    expected = other_forms.CASES[case].expected
+    if verdict in expected:
+        return "right"
+    if verdict == "ambiguous" and expected & set(tied):
+        return "ambiguous_with_truth"
+    if verdict == "none":
+        return "missed"
+    if verdict in ("unexplained", "ambiguous", "error"):
+        return "other"
+    return "wrong_name"
+
+
+def run_one(job) -> dict:
+    """Generate, write, diagnose blind and score one recording."""
+    from hyst_gym.diagnose import diagnose
+
+    case, channels, seed, samples = job
+    row = {"case": case, "channels": channels, "seed": seed}
+    with tempfile.TemporaryDirectory(prefix="other_forms_") as folder:
+        path = Path(folder) / "recording.csv"
+        started = time.perf_counter()
+        recording, truth = other_forms.write(case, seed, channels, path, n_samples=samples)
+        row["generate_seconds"] = round(time.perf_counter() - started, 2)
+        started = time.perf_counter()
+        try:
+            report = diagnose(path, progress=False).to_json()
+        except Exception as error:  # the tool is being changed: record, do not stop the study
+            report = {"verdict": "error", "confidence": float("nan"), "candidates_tied": [],
+                      "error": f"{type(error).__name__}: {error}"[:300]}
+        row["seconds"] = round(time.perf_counter() - started, 2)
+    tied = list(report.get("candidates_tied") or [])
+    row.update(form=truth["form"], verdict=report["verdict"], slot=report.get("slot"), tied=tied,
+               confidence=report.get("confidence"), outcome=outcome(case, report["verdict"], tied),
+               visibility=truth["visibility"], size_boost=round(truth["size_boost"], 3),
+               samples=recording.size, sample_rate_hz=round(truth["sample_rate"], 1),
+               noise_relative=truth["noise_rel"], excitation=truth["excitation_family"],
+               numerics=truth["numerics"], load_average=round(os.getloadavg()[0], 2))
+    if "error" in report:
+        row["error"] = report["error"]
+    return row
+
+
+def tally(rows) -> dict:
+    n = len(rows)
+    counts = {o: sum(r["outcome"] == o for r in rows) for o in OUTCOMES}
+    return {"n": n, **counts,
+            "right_share": counts["right"] / n if n else None,
+            "right_or_ambiguous_share": (counts["right"] + counts["ambiguous_with_truth"]) / n if n else None,
+            "verdicts": {v: sum(r["verdict"] == v for r in rows) for v in sorted({r["verdict"] for r in rows})}}
+
+
+def summarize(rows) -> dict:
+    def by(*keys):
+        groups = {}
+        for r in rows:
+            groups.setdefault("/".join(str(r[k]) for k in keys), []).append(r)
+        return {k: tally(v) for k, v in sorted(groups.items())}
+
+    seconds = sorted(r["seconds"] for r in rows)
+    return {"total": tally(rows), "per_channel_set": by("channels"), "per_case": by("case"),
+            "per_case_and_channel_set": by("case", "channels"), "per_case_and_form": by("case", "form"),
+            "seconds_per_diagnosis": {"median": seconds[len(seconds) // 2], "min": seconds[0], "max": seconds[-1]}
+            if seconds else None}
+
+
+def _pct(x):
+    return "–" if x is None else f"{100 * x:.0f} %"
+
+
+def _table(title, groups):
+    lines = [f"## {title}", "", "| group | n | right | right or ambiguous with truth | wrong name | missed | other "
+             "| verdicts |", "|---|---|---|---|---|---|---|---|"]
+    for key, t in groups.items():
+        verdicts = ", ".join(f"{v} {c}" for v, c in t["verdicts"].items())
+        lines.append(f"| {key} | {t['n']} | {t['right']} ({_pct(t['right_share'])}) | "
+                     f"{t['right'] + t['ambiguous_with_truth']} ({_pct(t['right_or_ambiguous_share'])}) | "
+                     f"{t['wrong_name']} | {t['missed']} | {t['other']} | {verdicts} |")
+    return lines + [""]
+
+
+def markdown(summary, rows, command, skipped) -> str:
+    right_sets = ", ".join(f"`{c}`: {{{', '.join(sorted(s.expected))}}}" for c, s in other_forms.CASES.items())
+    lines = ["# Mismatch tool on physics in other forms", "",
+             f"Generated by `{command}` (generator `experiments/other_forms.py`). Right verdicts per case: "
+             f"{right_sets}.", ""]
+    if skipped:
+        lines += [f"Not run (the effect cannot show in that channel set): {', '.join(skipped)}.", ""]
+    sec = summary["seconds_per_diagnosis"]
+    if sec:
+        lines += [f"Seconds per diagnosis: median {sec['median']:.1f}, min {sec['min']:.1f}, max {sec['max']:.1f}.", ""]
+    lines += _table("Total", {"all": summary["total"]})
+    lines += _table("Per channel set", summary["per_channel_set"])
+    lines += _table("Per case", summary["per_case"])
+    lines += _table("Per case and channel set", summary["per_case_and_channel_set"])
+    lines += _table("Per case and form", summary["per_case_and_form"])
+    lines += ["## Recordings", "", "| case | channels | seed | form | verdict | tied | confidence | outcome | "
+              "visibility (noise sd) | s |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        vis = ", ".join(f"{k[0]} {v:.1f}" for k, v in r["visibility"].items()) or "–"
+        conf = r["confidence"]
+        conf = "–" if conf is None or conf != conf else f"{conf:.2f}"
+        lines.append(f"| {r['case']} | {r['channels']} | {r['seed']} | {r['form']} | {r['verdict']} | "
+                     f"{', '.join(r['tied']) or '–'} | {conf} | {r['outcome']} | {vis} | {r['seconds']:.1f} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=2, help="recordings per case and channel set (default 2)")
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--samples", type=int, default=other_forms.DEFAULT_SAMPLES)
+    parser.add_argument("--cases", nargs="+", default=list(other_forms.ALL_CASES), choices=other_forms.ALL_CASES)
+    parser.add_argument("--channels", nargs="+", default=list(other_forms.CHANNEL_SETS),
+                        choices=other_forms.CHANNEL_SETS)
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1: a single process)")
+    parser.add_argument("--out", type=Path, default=RESULTS / "other_forms",
+                        help="stem of the .json and .md to write (default experiments/results/diagnose/other_forms)")
+    args = parser.parse_args(argv)
+    if args.seeds < 1 or args.jobs < 1 or args.samples < 400:
+        parser.error("--seeds and --jobs must be >= 1 and --samples >= 400")
+    command = "python -m experiments.diagnose_other_forms " + " ".join(argv if argv is not None else
+                                                                         __import__("sys").argv[1:])
+    jobs, skipped = jobs_for(args.cases, args.channels, args.seeds, args.first_seed, args.samples)
+    rows = []
+    if args.jobs == 1:
+        results = map(run_one, jobs)
+    else:
+        pool = ProcessPoolExecutor(max_workers=args.jobs)
+        results = pool.map(run_one, jobs)
+    for i, row in enumerate(results, 1):
+        rows.append(row)
+        print(f"[{i}/{len(jobs)}] {row['case']}/{row['channels']}/seed {row['seed']} ({row['form']}): "
+              f"{row['verdict']} {row['confidence']} -> {row['outcome']} ({row['seconds']:.1f} s)", flush=True)
+    if args.jobs != 1:
+        pool.shutdown()
+    summary = summarize(rows)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    payload = {"command": command, "skipped": skipped, "summary": summary, "rows": rows}
+    args.out.with_suffix(".json").write_text(json.dumps(payload, indent=2, default=str) + "\n")
+    args.out.with_suffix(".md").write_text(markdown(summary, rows, command, skipped))
+    print("\n".join(_table("Per case and channel set", summary["per_case_and_channel_set"])))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,181 @@
+"""The other-forms generator (experiments/other_forms.py): deterministic, its effects vanish at
+zero size, its maps, rod and pickup have the stated physics, and it shares no code with the fitter.
+Nothing here reads the mismatch tool's verdicts."""
+
+import ast
+import math
+import pathlib
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy import linalg, signal
+
+from experiments import independent_recordings as ir
+from experiments import other_forms as of
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+SHORT = 600
+#: Cases whose effect has a size knob that switches it off at 0.
+SIZED = ("delta_e_shifted", "saturating_amplifier", "sensor_nonlinearity", "heating_other_law",
+         "sensor_offset_drift", "mains_pickup", "two_phase_rod")
+
+
+def test_imports_nothing_of_the_fitter():
+    tree = ast.parse((ROOT / "experiments" / "other_forms.py").read_text())
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            names.add(node.module or "")
+    hyst = {n for n in names if n.startswith("hyst_gym")}
+    assert hyst <= {"hyst_gym.diagnose.recording"}, hyst
+
+
+@pytest.mark.parametrize("case", ["saturating_amplifier", "sensor_offset_drift"])
+def test_same_seed_same_data(case):
+    a, b = (of.simulate(case, 0, "both", n_samples=SHORT, size=1.0) for _ in range(2))
+    for ch in a.clean:
+        np.testing.assert_array_equal(a.clean[ch], b.clean[ch])
+    assert a.truth == b.truth
+    c = of.simulate(case, 5, "both", n_samples=SHORT, size=1.0)
+    assert not np.array_equal(a.clean["magnetization"], c.clean["magnetization"])
+
+
+def test_generate_is_deterministic_with_noise():
+    (r1, t1), (r2, _) = (of.generate("mains_pickup", 6, "displacement", n_samples=SHORT) for _ in range(2))
+    np.testing.assert_array_equal(r1.displacement, r2.displacement)
+    assert r1.magnetization is None and t1["noise_std"]["displacement"] > 0
+    assert "mains" not in str(r1.metadata).lower()
+
+
+@pytest.mark.parametrize("case", SIZED)
+def test_effect_vanishes_at_zero_size(case):
+    st = of.setup(case, 6, SHORT)
+    st = replace(st, form="mixture") if st.form == "split_roles" else st
+    with_zero = of.forward(st.sized(0.0))
+    plain = of.forward(replace(st, case="none_other_numerics"))
+    for ch in of.BOTH:
+        np.testing.assert_allclose(with_zero[ch], plain[ch], rtol=0, atol=1e-12 * np.ptp(plain[ch]))
+    effect = of.forward(st)
+    assert max(np.ptp(effect[ch] - plain[ch]) / np.ptp(plain[ch]) for ch in of.BOTH) > 1e-4
+
+
+@pytest.mark.parametrize("form", ["tanh", "arctan", "erf", "asymmetric_tanh"])
+def test_saturating_amplifier_is_monotone_and_saturates(form):
+    h = np.linspace(-1.0, 1.0, 4001) * 1e5
+    out = of.amplifier(h, form, overdrive=4.0, asymmetry=1.5)
+    hs = 1e5 / 4.0
+    assert np.all(np.diff(out) > 0)
+    assert np.max(out) < hs and np.min(out) > -1.5 * hs
+    assert out[-1] > 0.85 * hs  # 4 Hs in: within 15 % of the ceiling
+    slope0 = (out[2001] - out[1999]) / (h[2001] - h[1999])
+    assert slope0 == pytest.approx(1.0, abs=1e-3)  # unit small-signal gain
+    np.testing.assert_allclose(of.amplifier(h, form, 1e-7, 1.5), h, rtol=1e-6)
+
+
+@pytest.mark.parametrize("form", ["arctan", "tanh", "exponential"])
+def test_sensor_map_is_monotone_and_not_a_cubic(form):
+    y = np.sin(np.linspace(0, 6, 3000)) * 2e-5 + 1e-5
+    out = of.sensor_map(y, form, 1.0, 0.1)
+    order = np.argsort(y)
+    assert np.all(np.diff(out[order]) >= 0)
+    # the best cubic in y leaves a residual: the form is not the tool's polynomial
+    v = (y - y.mean()) / np.ptp(y)
+    basis = np.column_stack([v ** p for p in range(4)])
+    residual = out - basis @ np.linalg.lstsq(basis, out, rcond=None)[0]
+    assert np.std(residual) > 1e-4 * np.ptp(out)
+
+
+def test_heating_laws_start_at_ambient_and_differ_from_the_tools():
+    time = np.linspace(0, 1, 2001)
+    field = 1e4 * np.sin(2 * np.pi * 20 * time)
+    for network in ("series", "parallel"):
+        law = {"drive": "abs", "network": network, "tau1": 0.05, "tau2": 0.5, "fast_share": 0.5,
+               "a_law": "linear", "a_slope": 2e-3, "ms_law": "bloch", "curie": 650.0}
+        theta = of.thermal_rise(time, field, law, 40.0)
+        assert theta[0] == pytest.approx(0.0, abs=1e-9) and 0 < theta[-1] < 40.0
+        a_scale, ms_scale = of.material_scales(theta, law)
+        assert a_scale[0] == 1.0 and ms_scale[0] == 1.0 and theta[-1] > theta[500] > theta[100]
+        assert ms_scale[-1] < 1.0  # Bloch: Ms falls as T rises
+
+
+def test_rod_first_resonance_matches_the_frequency_equation_and_a_finite_difference_rod():
+    mu = 2.0  # rod mass / tip mass
+    roots, compliance = of.rod_modes(mu)
+    # frequency equation beta*L*tan(beta*L) = mu
+    assert np.allclose(roots * np.tan(roots), mu, rtol=1e-9)
+    assert compliance.sum() == pytest.approx(1.0, abs=2e-3)  # static tip compliance L/(EA) = 1
+    # independent check: a lumped-mass chain (N segments, L = EA = rho*A = 1) with the tip mass
+    n = 200
+    h = 1.0 / n
+    stiffness = (np.diag(np.full(n, 2.0)) - np.diag(np.ones(n - 1), 1) - np.diag(np.ones(n - 1), -1)) / h
+    stiffness[-1, -1] = 1.0 / h
+    mass = np.full(n, h)
+    mass[-1] = 0.5 * h + 1.0 / mu
+    omega = np.sqrt(linalg.eigh(stiffness, np.diag(mass), eigvals_only=True, subset_by_index=[0, 2]))
+    np.testing.assert_allclose(omega, roots[:3], rtol=1e-3)
+
+
+def test_simulated_rod_rings_at_its_first_mode():
+    """The Newmark-integrated modal rod, released from a static load, rings at f1."""
+    f1, mu = 1300.0, 1.0
+    roots, compliance = of.rod_modes(mu)
+    omega = 2 * np.pi * f1 * roots / roots[0]
+    fs = 50e3
+    force = np.zeros(2000)
+    force[:5] = 1.0  # released after 5 samples
+    gain = omega ** 2 * compliance
+    x = of.newmark(force, 1 / fs, omega ** 2, 2 * 0.002 * omega, gain, np.ones(omega.size), substeps=16)
+    tail = x[50:] - x[50:].mean()
+    crossings = np.flatnonzero(np.diff(np.sign(tail)) > 0)
+    period = np.mean(np.diff(crossings[2:-2])) / fs
+    assert 1 / period == pytest.approx(f1, rel=5e-3)
+
+
+def test_newmark_matches_an_exact_lti_response():
+    fs, khat, chat, gain = 20e3, 6.4e7, 7.9e3, 1.4e-2
+    t = np.arange(3000) / fs
+    forcing = 1e5 * np.sin(2 * np.pi * 300 * t) * np.exp(-t * 10)
+    ours = of.newmark(forcing, 1 / fs, khat, chat, gain, 1.0, substeps=16)
+    system = signal.lti([gain], [1.0, chat, khat])
+    _, exact, _ = signal.lsim(system, forcing, t, X0=[0.0, 0.0], interp=True)
+    assert np.max(np.abs(ours - exact)) < 2e-3 * np.ptp(exact)
+
+
+def test_field_domain_magnetization_agrees_with_the_time_domain_solver():
+    base = ir.draw_base(1, 400)  # a chirp: many reversals
+    time, field, _ = ir.excitation(base)
+    ours = of.magnetization(time, field, base.material)
+    theirs = ir.simulate_magnetization(time, field, base.material)
+    assert np.max(np.abs(ours - theirs)) < 1e-3 * np.ptp(theirs)
+
+
+def test_mains_pickup_peaks_at_its_frequency():
+    fs = 5000.0
+    t = np.arange(int(20 * fs)) / fs
+    y = of.mains(t, 50.1, 1.0, (0.3, 0.1), (0.1, 0.2, 0.3))
+    spectrum = np.abs(np.fft.rfft(y * np.hanning(y.size)))
+    freqs = np.fft.rfftfreq(y.size, 1 / fs)
+    assert freqs[np.argmax(spectrum)] == pytest.approx(50.1, abs=0.06)
+    third = (freqs > 140) & (freqs < 160)
+    assert freqs[third][np.argmax(spectrum[third])] == pytest.approx(150.3, abs=0.06)
+
+
+def test_effect_is_visible_and_skipped_channel_sets_refuse():
+    for case, channels in (("sensor_offset_drift", "magnetization"), ("mains_pickup", "displacement")):
+        sim = of.simulate(case, 6, channels, n_samples=SHORT)
+        assert sim.truth["visible"] and sim.truth["visibility"][channels] >= of.MIN_VISIBILITY
+    with pytest.raises(ValueError, match="cannot show"):
+        of.simulate("continuum_rod", 0, "magnetization")
+
+
+def test_command_line_writes_csv_sidecar_and_truth(tmp_path):
+    out = tmp_path / "rec.csv"
+    assert of.main(["--case", "saturating_amplifier", "--seed", "1", "--channels", "magnetization",
+                    "--out", str(out), "--truth", str(tmp_path / "truth.json"), "--samples", str(SHORT)]) == 0
+    header = out.read_text().splitlines()[0]
+    assert header == "time,field,magnetization"
+    assert out.with_suffix(".json").exists() and (tmp_path / "truth.json").exists()
+    assert math.isfinite(float(out.read_text().splitlines()[1].split(",")[2]))
