@@ -166,3 +166,11 @@ def test_compiled_erf_is_within_its_stated_accuracy():
     x = np.linspace(-8.0, 8.0, 20001)
     errors = np.array([erf_inline(v) - math.erf(v) for v in x])
     assert np.max(np.abs(errors)) < 1.5e-7  # Abramowitz and Stegun 7.1.26
+
+
+def test_compiled_atan_is_within_its_stated_accuracy():
+    from hyst_gym.physics.hem import atan_inline
+
+    x = np.concatenate([np.linspace(-50.0, 50.0, 20001), np.geomspace(1e-9, 1e12, 400), -np.geomspace(1e-9, 1e12, 400)])
+    errors = np.array([atan_inline(v) - math.atan(v) for v in x])
+    assert np.max(np.abs(errors)) < 1e-12
