@@ -367,7 +367,8 @@ def cross_start(candidates, base_heldout, weights, fit_mask, held_mask, limit: i
 
     Why: an extension that the base fit's basin does not suit (a strong M^2 law, say) can end far from
     its own optimum, and then another extension that mimics it wins by optimization alone. Started
-    from where the winner put the shared parameters, such a candidate reaches its own optimum; the
+    from where the winner put the shared parameters (its displacement gains solved again there), such a
+    candidate reaches its own optimum; the
     decision then compares the two as they are (a tie gives ``ambiguous``). Only when the best
     candidate lowers the base model's held-out RMSE by ``ACCEPT_IMPROVEMENT`` (else nothing is named
     anyway); at most ``limit`` runners-up, best held-out first, those whose fitting-block SSE is above
@@ -384,11 +385,25 @@ def cross_start(candidates, base_heldout, weights, fit_mask, held_mask, limit: i
         start = {**candidate.fit.values, **{n: v for n, v in shared.items() if n in model.parameters}}
         if best.effect == "anhysteretic_shape" or candidate.effect == "anhysteretic_shape":
             continue  # a and the slope mean different things under the two curves
+        start = _resolve_outputs(model, candidate.effect, start, weights, fit_mask)
         refit = local_fit(model, weights, fit_mask, start, max_nfev=40)
         if refit.sse < candidate.fit.sse:
             candidate.fit = refit
             candidate.heldout_rmse, _, candidate.heldout_residual = _residual(model, refit.values, weights, held_mask)
             candidate.bic = refit.bic
+
+
+def _resolve_outputs(model, effect, values, weights, fit_mask):
+    """``values`` with the displacement's output parameters solved again at its hysteresis and mechanics:
+    the M and M^2 gains and the bias for the M^2 law, the gain and the bias otherwise."""
+    if "displacement" not in model.channels:
+        return values
+    if effect == "quadratic_magnetostriction" and "zetahat" in values:
+        return _quadratic_start(model, values, weights, fit_mask)
+    pair = _linear_pair(model)
+    if not pair:
+        return values
+    return _solve_linear_outputs(model, values, model.magnetization([values])[:, 0], weights, fit_mask, pair)
 
 
 def _effect_starts(model, effect, base_values):

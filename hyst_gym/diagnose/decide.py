@@ -10,7 +10,8 @@ An accepted candidate is then *plausible* only if
 2. its main parameter agrees across ``BLOCKS`` independent time blocks of the record (each
    refitted alone, the rest held at the candidate's fit): a real effect has one value, while
    a vocabulary effect that stands in for something outside the vocabulary is pulled to
-   different values by the different excitation in each block;
+   different values by the different excitation in each block (for a flexible family, the
+   coefficient the record determines best: :data:`FAMILY_EFFECTS`);
 3. a bias field shows in the data: ``field_bias`` is rejected when its H0 is much larger than
    the horizontal offset of the recorded loop itself;
 4. a static map is monotone: an ``input_map`` or ``sensor_map`` whose output falls as its input
@@ -107,8 +108,10 @@ SEARCH_RANGES_ONLY = ("tau_th", "g2", "damping2", "input_saturation", "heating_e
 MAIN_PARAMETER = {"field_bias": "H0", "eddy_current": "k_e", "thermal_drift": "heating",
                   "quadratic_magnetostriction": "zeta_q", "rod_dynamics": "f2", "delta_e": "delta_e",
                   "small_loop": "chi_r"}
-# input_map and sensor_map have no single main parameter (their shape is spread over two or three
-# coefficients that trade off): the held-out block judges them, and the shape is plotted.
+#: Families whose shape is spread over several coefficients: the block check refits the one the record
+#: determines best (largest |value|/sigma), which a real map or drift shares across the blocks while a
+#: family bent to mimic something else is pulled to different values by each block's excitation.
+FAMILY_EFFECTS = ("input_map", "sensor_map", "sensor_drift", "mains_pickup")
 
 
 @dataclass
@@ -142,8 +145,12 @@ def check_plausibility(candidate, weights, blocks: int = BLOCKS) -> Plausibility
         if min(abs(value - p.lower), abs(p.upper - value)) < 1e-3 * span and value != 0.0:
             out.reject(f"{name} = {value:.4g} sits at the bound of its physical range "
                        f"[{p.lower:.4g}, {p.upper:.4g}]")
-    main = (sensor_lag_parameter(model) if candidate.effect == "sensor_lag"
-            else MAIN_PARAMETER.get(candidate.effect))
+    if candidate.effect == "sensor_lag":
+        main = sensor_lag_parameter(model)
+    elif candidate.effect in FAMILY_EFFECTS:
+        main = best_determined(fit, EFFECT_PARAMETERS[candidate.effect])
+    else:
+        main = MAIN_PARAMETER.get(candidate.effect)
     if main is not None:
         values, sigmas = block_estimates(fit, main, weights, blocks)
         out.block_values = values
@@ -163,6 +170,14 @@ def check_plausibility(candidate, weights, blocks: int = BLOCKS) -> Plausibility
             out.reject(f"a bias field of {bias:.3g} A/m would shift the recorded loop, but the loop is centred "
                        f"within {abs(visible):.2g} A/m")
     return out
+
+
+def best_determined(fit, names):
+    """The free parameter among ``names`` with the largest |value|/sigma in ``fit`` (None if none is free)."""
+    scored = [(abs(fit.values[n]) / (fit.uncertainties.get(n) or np.inf), n) for n in names
+              if n in fit.model.parameters and fit.model.parameters[n].free]
+    scored = [(z if np.isfinite(z) else 0.0, n) for z, n in scored]
+    return max(scored)[1] if scored else None
 
 
 def static_map_slopes(effect, values, channels, points: int = 201):

@@ -118,7 +118,7 @@ def structured_power(residual, bootstrap: int = STRUCTURE_BOOTSTRAP, seed: int =
     For a residual r = s + e with e white and s varying slower than a few samples, the
     autocovariance at lags 1..3 (about zero, so an offset counts) is the power of s, whatever the
     power of e: ``structured = mean_k mean_t r_t r_{t+k}``, ``noise = mean r^2 - structured``,
-    ``share = structured/noise`` (at most 99: the noise power is floored at 1 % of the total).
+    ``share = structured/noise`` (about 100 at most: the noise power is floored at 1 % of the total).
     Unlike the held-out RMSE it needs no estimate of the noise
     level, and unlike a whiteness p-value it does not grow with the record: a 5 % systematic
     error stays 0.05 at any length. The interval is a 95 % moving-block bootstrap (blocks of
@@ -130,7 +130,7 @@ def structured_power(residual, bootstrap: int = STRUCTURE_BOOTSTRAP, seed: int =
         total = float(np.mean(x * x))
         lagged = float(np.mean([np.mean(x[:-k] * x[k:]) for k in STRUCTURE_LAGS]))
         # a residual that is nearly all structure has almost no white part left to measure: the
-        # noise power is floored at 1 % of the total, so the share reads at most 99
+        # noise power is floored at 1 % of the total, so the share reads about 100 at most
         noise = max(total - lagged, 0.01 * total, 1e-300)
         return lagged / noise, lagged, noise
 

@@ -104,8 +104,9 @@ DRIFT_NAMES = {"magnetization": ("drift_linear_m", "drift_quadratic_m"),
                "displacement": ("drift_linear_x", "drift_quadratic_x")}
 MAINS_NAMES = {ch: tuple(f"{term}_{ch[0]}" for term in ("mains_cos", "mains_sin", "mains3_cos", "mains3_sin"))
                for ch in ("magnetization", "displacement")}
-#: Mains pickup needs this many cycles in the record and its third harmonic below the Nyquist frequency.
-MAINS_MIN_CYCLES = 10
+#: Mains pickup needs this many cycles in the record (a sinusoid of known frequency is fixed by a few)
+#: and its third harmonic below the Nyquist frequency.
+MAINS_MIN_CYCLES = 3
 #: Sensor-map parameters per output channel.
 SENSOR_MAP_NAMES = {"magnetization": ("sensor_quadratic_m", "sensor_cubic_m"),
                     "displacement": ("sensor_quadratic_x", "sensor_cubic_x")}
