@@ -56,3 +56,23 @@ def test_speed_script_times_the_slowest_rows_alone():
               "load_average_after": 1.2, "verdict": "rod_dynamics", "verdict_in_study": "rod_dynamics"}
     text = markdown([dict(common, samples=4000, seconds_alone=10.0), dict(common, samples=20000, seconds_alone=30.0)])
     assert text.rstrip().endswith("Largest time alone: 30.0 s (20,000 samples, 1-min load 1.0).")
+
+
+def test_before_after_pairs_the_same_recordings_and_rescores_with_one_yardstick():
+    """Only recordings in both row sets are compared; an earlier `unexplained` on an effect that a family
+    now names is not right under today's yardstick; `none` recordings flagged are counted."""
+    from experiments.diagnose_concealed import before_after
+
+    def row(effect, seed, verdict, generator="independent", channels="both"):
+        return {"generator": generator, "channels": channels, "effect": effect, "seed": str(seed),
+                "verdict": verdict, "tied": ""}
+
+    before = [row("amplifier_saturation", 1, "unexplained"), row("none", 1, "unexplained"), row("none", 2, "none"),
+              row("eddy_current", 1, "eddy_current"), row("eddy_current", 9, "none")]
+    after = [row("amplifier_saturation", 1, "input_map"), row("none", 1, "none"), row("none", 2, "none"),
+             row("eddy_current", 1, "sensor_lag")]
+    (table,) = before_after(before, after)
+    assert table["group"] == "independent/both" and table["n"] == 4
+    assert table["right"] == [2, 3]            # before: none 2, eddy; after: input_map, none 1, none 2
+    assert table["wrong_names"] == [0, 1]      # sensor_lag for eddy currents
+    assert table["none_flagged"] == [1, 0] and table["none_n"] == 2 and table["changed"] == 3
