@@ -165,7 +165,17 @@ def main(argv=None):
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (default 1: a single process)")
     parser.add_argument("--out", type=Path, default=RESULTS / "other_forms",
                         help="stem of the .json and .md to write (default experiments/results/diagnose/other_forms)")
+    parser.add_argument("--page", type=Path, help="also write the tables into this page's "
+                        "<!-- section:other-forms --> block (e.g. docs/results/diagnose.md)")
+    parser.add_argument("--summarize", type=Path, metavar="JSON",
+                        help="diagnose nothing: rewrite the .md (and --page) from a stored study JSON")
     args = parser.parse_args(argv)
+    if args.summarize is not None:
+        if not args.summarize.is_file():
+            parser.error(f"--summarize {args.summarize}: no such file")
+        payload = json.loads(args.summarize.read_text())
+        _write_texts(args, payload)
+        return
     if args.seeds < 1 or args.jobs < 1 or args.samples < 400:
         parser.error("--seeds and --jobs must be >= 1 and --samples >= 400")
     command = "python -m experiments.diagnose_other_forms " + " ".join(argv if argv is not None else
@@ -187,8 +197,19 @@ def main(argv=None):
     args.out.parent.mkdir(parents=True, exist_ok=True)
     payload = {"command": command, "skipped": skipped, "summary": summary, "rows": rows}
     args.out.with_suffix(".json").write_text(json.dumps(payload, indent=2, default=str) + "\n")
-    args.out.with_suffix(".md").write_text(markdown(summary, rows, command, skipped))
+    _write_texts(args, payload)
     print("\n".join(_table("Per case and channel set", summary["per_case_and_channel_set"])))
+
+
+def _write_texts(args, payload):
+    """The study's markdown, and with ``--page`` its tables (less the title) in the page's section."""
+    text = markdown(payload["summary"], payload["rows"], payload["command"], payload["skipped"])
+    args.out.with_suffix(".md").write_text(text)
+    if args.page is not None:
+        from experiments.report_markdown import update_readme
+
+        body = text.split("\n", 2)[2]   # drop the title line and the blank line after it
+        update_readme(args.page, body.replace("\n## ", "\n### "), area="other-forms")
 
 
 if __name__ == "__main__":

@@ -57,8 +57,9 @@ the base model when those parameters vanish:
 Each extension fills one *slot* of the model chain (:data:`EFFECT_SLOTS`): the input map, the
 anhysteretic curve, the time variation of the material, the rate dependence, the
 magnetostriction law, the stiffness, the mechanical modes, the sensor's dynamics or the sensor's
-static map. The flexible families (``delta_e``, ``input_map``, ``sensor_map``) hold the textbook
-law as a special case and other laws of the same slot besides (issue 22).
+static map, the sensor's offset and pickup. The flexible families (``delta_e``, the heating law of
+``thermal_drift``, ``input_map``, ``sensor_map``, ``sensor_drift``) hold the textbook law as a special
+case and other laws of the same slot besides (issue 22).
 
 The fitted coordinates are ``ln(value)`` for the positive scale parameters and
 ``value/scale`` for the others; the feedback is fitted as ``rho = alpha*Man'(0)`` (the
@@ -272,14 +273,14 @@ class Model:
         out = {}
         time = self.recording.time
         if "magnetization" in self.channels:
-            out["magnetization"] = self._sensor_map("magnetization", values, _lag(
+            out["magnetization"] = self._sensor_terms("magnetization", values, _lag(
                 time, magnetization, values.get("tau_m", 0.0), self._classes))
         if "displacement" in self.channels:
-            out["displacement"] = self._sensor_map("displacement", values, _lag(
+            out["displacement"] = self._sensor_terms("displacement", values, _lag(
                 time, self.displacement(values, magnetization), values.get("tau_x", 0.0), self._classes))
         return out
 
-    def _sensor_map(self, channel, values, signal):
+    def _sensor_terms(self, channel, values, signal):
         """What the sensor adds to the true output: its static map (``sensor_map``), a slow offset drift
         (``sensor_drift``) and mains pickup (``mains_pickup``); the identity when their coefficients vanish."""
         quadratic, cubic = (values.get(n, 0.0) for n in SENSOR_MAP_NAMES[channel])
