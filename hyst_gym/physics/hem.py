@@ -53,6 +53,14 @@ import numpy as np
 from numba import njit
 from scipy.special import ndtr, ndtri
 
+from .anhysteretic import tanh_expm1
+
+
+#: The saturating reversible part, an option (``reversible_saturation`` > 0): the HEM's kernel has the
+#: reversible slope 1/eta at every field, so the reversible magnetization grows without bound. Reversible
+#: wall bowing and rotation saturate with the material; this option bounds the reversible part by the
+#: Ising form of the anhysteretic curve (2), as the reversible part c*Man of the domain-wall model (5):
+SATURATING_REVERSIBLE = "M_rev = (h_s/eta)*tanh(H/h_s): slope 1/eta at low field, bounded by h_s/eta"
 
 #: Codes of the interaction densities in the compiled kernels.
 NORMAL = 0
@@ -98,6 +106,9 @@ class HEMParams:
         ``"normal"`` (the HEM's), ``"lorentzian"`` or ``"student_t2"``.
     coercive_nodes : int
         Nodes of the coercive-field quadrature (>= 1).
+    reversible_saturation : float
+        ``h_s``, A/m (>= 0). 0, the default, is the HEM's linear reversible part ``H/eta``; above 0 the
+        reversible part saturates, ``(h_s/eta)*tanh(H/h_s)`` (:data:`SATURATING_REVERSIBLE`).
     """
 
     relay_magnetization: float = 3.0e5
@@ -107,8 +118,11 @@ class HEMParams:
     interaction_scale: float = 30.0
     interaction_density: str = "normal"
     coercive_nodes: int = DEFAULT_COERCIVE_NODES
+    reversible_saturation: float = 0.0
 
     def __post_init__(self):
+        _check_saturation(self.reversible_saturation, "HEMParams")
+        object.__setattr__(self, "reversible_saturation", float(self.reversible_saturation))
         for name in _PARAMETER_NAMES:
             object.__setattr__(self, name, float(getattr(self, name)))
         validate_hem_parameters(*(getattr(self, n) for n in _PARAMETER_NAMES), owner="HEMParams")
@@ -120,6 +134,12 @@ class HEMParams:
     def replace(self, **changes) -> "HEMParams":
         """A copy with some fields changed (validated)."""
         return dataclasses.replace(self, **changes)
+
+
+def _check_saturation(values, owner):
+    values = np.asarray(values, dtype=np.float64)
+    if not np.all(np.isfinite(values) & (values >= 0.0)):
+        raise ValueError(f"{owner}: reversible_saturation must be finite and >= 0 A/m, got {values.ravel()[:1]}")
 
 
 def _check_nodes(nodes, owner):
@@ -166,6 +186,7 @@ class HEMConstants(NamedTuple):
     relay_weight: np.ndarray  # (N, B) M_R times the node's weight: magnetization per node, A/m
     inverse_scale: np.ndarray  # (B,) 1/(sqrt(2) b) (normal) or 1/b (Lorentzian), 1/(A/m)
     reversible_susceptibility: np.ndarray  # (B,) 1/eta, dimensionless
+    reversible_saturation: np.ndarray  # (B,) h_s, A/m; 0: linear reversible part
 
 
 class HEMState(NamedTuple):
@@ -188,8 +209,11 @@ class HEMBatch:
     interaction_scale: np.ndarray
     interaction_density: str = "normal"
     coercive_nodes: int = DEFAULT_COERCIVE_NODES
+    reversible_saturation: np.ndarray | float = 0.0
 
     def __post_init__(self):
+        saturation = np.asarray(self.reversible_saturation, dtype=np.float64)
+        _check_saturation(saturation, "HEMBatch")
         arrays = np.broadcast_arrays(*(np.asarray(getattr(self, n), dtype=np.float64) for n in _PARAMETER_NAMES))
         if arrays[0].ndim != 1:
             raise ValueError(f"HEMBatch: parameters must be 1-D arrays, got shape {arrays[0].shape}")
@@ -202,6 +226,9 @@ class HEMBatch:
             object.__setattr__(self, name, array)
         object.__setattr__(self, "interaction_density", str(self.interaction_density).lower())
         object.__setattr__(self, "coercive_nodes", int(self.coercive_nodes))
+        saturation = np.array(np.broadcast_to(saturation, arrays[0].shape), dtype=np.float64)
+        saturation.setflags(write=False)
+        object.__setattr__(self, "reversible_saturation", saturation)
 
     @property
     def size(self) -> int:
@@ -216,7 +243,7 @@ class HEMBatch:
     def from_params(cls, params: HEMParams, size: int = 1) -> "HEMBatch":
         one = np.ones(int(size))
         return cls(*(getattr(params, n) * one for n in _PARAMETER_NAMES), params.interaction_density,
-                   params.coercive_nodes)
+                   params.coercive_nodes, params.reversible_saturation * one)
 
     @classmethod
     def stack(cls, params_list) -> "HEMBatch":
@@ -227,7 +254,8 @@ class HEMBatch:
         if len(shared) != 1:
             raise ValueError(f"HEMBatch.stack: mixed densities or node counts {sorted(shared)}")
         density, nodes = shared.pop()
-        return cls(*(np.array([getattr(p, n) for p in params_list]) for n in _PARAMETER_NAMES), density, nodes)
+        return cls(*(np.array([getattr(p, n) for p in params_list]) for n in _PARAMETER_NAMES), density, nodes,
+                   np.array([p.reversible_saturation for p in params_list]))
 
     def constants(self) -> HEMConstants:
         quantiles, weights = coercive_rule(self.coercive_nodes)
@@ -235,7 +263,7 @@ class HEMBatch:
         scale = self.interaction_scale * (math.sqrt(2.0) if self.kind == NORMAL else 1.0)
         return HEMConstants(np.ascontiguousarray(coercive),
                             np.ascontiguousarray(weights[:, None] * self.relay_magnetization[None, :]),
-                            1.0 / scale, self.reversible_susceptibility.copy())
+                            1.0 / scale, self.reversible_susceptibility.copy(), self.reversible_saturation.copy())
 
     def demagnetized(self) -> HEMState:
         """The ideally demagnetized state: every play output 0, M = 0 at H = 0."""
@@ -303,6 +331,14 @@ def relay_share(play, inverse_scale, kind):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def reversible_magnetization(field, susceptibility, saturation):
+    """The reversible part (A/m) at ``field`` (A/m): ``susceptibility*field`` for ``saturation`` 0, else
+    :data:`SATURATING_REVERSIBLE`."""
+    bounded = susceptibility * saturation * tanh_expm1(field / saturation)
+    return susceptibility * field if saturation == 0.0 else bounded
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _advance_node(play, coercive, weight, inverse_scale, field, kind):
     """One node of one model moved to ``field``: (new play output, its relay magnetization), A/m."""
     low = field - coercive
@@ -320,7 +356,8 @@ def advance_shared(state, field, constants, kind, magnetization):
     gives the same numbers bit for bit alone and in any bank."""
     play = state.play
     for b in range(play.shape[1]):
-        magnetization[b] = constants.reversible_susceptibility[b] * field
+        magnetization[b] = reversible_magnetization(field, constants.reversible_susceptibility[b],
+                                                    constants.reversible_saturation[b])
     for i in range(play.shape[0]):
         for b in range(play.shape[1]):
             play[i, b], part = _advance_node(play[i, b], constants.coercive[i, b], constants.relay_weight[i, b],
@@ -333,7 +370,8 @@ def advance_each(state, fields, constants, kind, magnetization):
     """Every model moved to its own field ``fields[b]`` (A/m); writes M (A/m) into ``magnetization``."""
     play = state.play
     for b in range(play.shape[1]):
-        magnetization[b] = constants.reversible_susceptibility[b] * fields[b]
+        magnetization[b] = reversible_magnetization(fields[b], constants.reversible_susceptibility[b],
+                                                    constants.reversible_saturation[b])
     for i in range(play.shape[0]):
         for b in range(play.shape[1]):
             play[i, b], part = _advance_node(play[i, b], constants.coercive[i, b], constants.relay_weight[i, b],
@@ -362,7 +400,8 @@ def state_with_magnetization(batch: HEMBatch, field: float, magnetization, itera
     then starts within 1.5e-7 of M_R of ``magnetization``."""
     constants = batch.constants()
     target = np.broadcast_to(np.asarray(magnetization, dtype=np.float64), (batch.size,))
-    relay_target = target - constants.reversible_susceptibility * field
+    relay_target = target - np.array([reversible_magnetization(field, chi, h) for chi, h in
+                                      zip(constants.reversible_susceptibility, constants.reversible_saturation)])
     low = np.full(batch.size, field - constants.coercive.max(axis=0))
     high = np.full(batch.size, field + constants.coercive.max(axis=0))
 
@@ -417,7 +456,7 @@ def simulate_hem(field, **params) -> np.ndarray:
 
 
 __all__ = [
-    "DEFAULT_COERCIVE_NODES", "HEMBatch", "HEMConstants", "HEMParams", "HEMState", "INTERACTION_DENSITIES",
+    "DEFAULT_COERCIVE_NODES", "SATURATING_REVERSIBLE", "reversible_magnetization", "HEMBatch", "HEMConstants", "HEMParams", "HEMState", "INTERACTION_DENSITIES",
     "LORENTZIAN", "NORMAL", "STUDENT_T2", "advance_each", "advance_shared", "atan_inline", "coercive_rule", "erf_inline", "interaction_density_code",
     "relay_share", "simulate_hem", "simulate_hem_batch", "simulate_shared", "state_with_magnetization",
     "validate_hem_parameters",

@@ -174,3 +174,15 @@ def test_compiled_atan_is_within_its_stated_accuracy():
     x = np.concatenate([np.linspace(-50.0, 50.0, 20001), np.geomspace(1e-9, 1e12, 400), -np.geomspace(1e-9, 1e12, 400)])
     errors = np.array([atan_inline(v) - math.atan(v) for v in x])
     assert np.max(np.abs(errors)) < 1e-12
+
+
+def test_saturating_reversible_part_changes_only_the_reversible_part():
+    field = np.concatenate([np.linspace(0, 90.0, 40), np.linspace(90.0, -30.0, 60), np.linspace(-30.0, 50.0, 40)])
+    linear = simulate_hem(field, **PARAMS)
+    saturating = simulate_hem(field, reversible_saturation=25.0, **PARAMS)
+    chi = PARAMS["reversible_susceptibility"]
+    np.testing.assert_allclose(saturating - linear, chi * (25.0 * np.tanh(field / 25.0) - field), rtol=0,
+                               atol=1e-9 * PARAMS["relay_magnetization"])
+    # far out, the reversible part is bounded by chi*h_s instead of growing with H
+    far = simulate_hem(np.array([0.0, 1e6]), reversible_saturation=25.0, **PARAMS)[-1]
+    assert far == pytest.approx(PARAMS["relay_magnetization"] + chi * 25.0, rel=1e-9)
