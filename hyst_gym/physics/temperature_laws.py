@@ -221,6 +221,8 @@ class HEMTemperatureLaws:
     coercive_median: object = field(default_factory=lambda: FollowsMs(2000.0, 2.0))
     coercive_spread: object = field(default_factory=lambda: Constant(0.6))
     interaction_scale: object = field(default_factory=lambda: FollowsMs(5000.0, 1.0))
+    #: field scale of the saturating reversible part (``hem.SATURATING_REVERSIBLE``), A/m; 0: linear
+    reversible_saturation: object = field(default_factory=lambda: Constant(0.0))
 
     def reduced_ms(self, T):
         """``relay_magnetization(T)/relay_magnetization(0 K)`` (dimensionless)."""
@@ -228,18 +230,20 @@ class HEMTemperatureLaws:
         return self.relay_magnetization(T, None) / float(np.asarray(self.relay_magnetization(np.array(1e-12), None)))
 
     def __call__(self, T):
-        """Dict of the five HEM parameters, float arrays shaped like ``T`` (K); valid below ``Tc`` only."""
+        """Dict of the HEM parameters (HEM_PARAMETER_NAMES and ``reversible_saturation``), float arrays
+        shaped like ``T`` (K); valid below ``Tc`` only."""
         T = _kelvin(T)
         reduced = self.reduced_ms(T)
         return {name: np.broadcast_to(np.asarray(getattr(self, name)(T, reduced), dtype=np.float64), T.shape).copy()
-                for name in HEM_PARAMETER_NAMES}
+                for name in HEM_PARAMETER_NAMES + ("reversible_saturation",)}
 
     def batch(self, T, interaction_density="normal", coercive_nodes=16):
         """A :class:`~hyst_gym.physics.hem.HEMBatch` with one model per temperature (K)."""
         from .hem import HEMBatch
 
         values = self(np.atleast_1d(np.asarray(T, dtype=np.float64)).ravel())
-        return HEMBatch(*(values[n] for n in HEM_PARAMETER_NAMES), interaction_density, coercive_nodes)
+        return HEMBatch(*(values[n] for n in HEM_PARAMETER_NAMES), interaction_density, coercive_nodes,
+                        values["reversible_saturation"])
 
 
 __all__ = [

@@ -27,7 +27,8 @@ def test_exponents_of_the_critical_laws():
     assert _slope(T, values["coercive_median"]) == pytest.approx(2.0 * 0.35, rel=1e-12)
     assert _slope(T, values["interaction_scale"]) == pytest.approx(0.35, rel=1e-12)
     np.testing.assert_allclose(values["coercive_spread"], 0.5)
-    assert set(values) == set(HEM_PARAMETER_NAMES)
+    assert set(values) == set(HEM_PARAMETER_NAMES) | {"reversible_saturation"}
+    np.testing.assert_array_equal(values["reversible_saturation"], 0.0)  # default: the linear reversible part
 
 
 def test_loops_narrow_and_flatten_towards_the_curie_point():
