@@ -55,3 +55,17 @@ def test_transfer_score_leaves_the_target_material_out():
     assert real_loops.transfer_scores(shared, exclude={"x"}) == {"a": pytest.approx(0.10)}
     loops = synthetic_loops(TRUE, peaks=(50.0,))
     assert real_loops.held_out_materials(loops, {"x": ([], loops), "y": ([], synthetic_loops(TRUE, (40.0,)))}) == {"x"}
+
+
+def test_saturating_hem_fit_recovers_the_reversible_saturation():
+    true = TRUE.replace(reversible_saturation=30.0, reversible_susceptibility=2000.0)
+    loops = synthetic_loops(true)
+    rec = real_loops.loop_recording([loops[0]], "synthetic")
+    mask = np.zeros(rec.size, bool)
+    mask[loops[0][0].size:] = True
+    fit = real_loops.fit_hem(rec, "normal", mask, saturating=True)
+    assert fit.params.reversible_saturation == pytest.approx(30.0, rel=0.05)
+    assert fit.params.reversible_susceptibility == pytest.approx(2000.0, rel=0.05)
+    # the linear-reversible HEM cannot follow the bounded reversible part as closely
+    linear = real_loops.fit_hem(rec, "normal", mask)
+    assert fit.sse < 0.1 * linear.sse
