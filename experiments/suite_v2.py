@@ -643,11 +643,10 @@ def figure(data: dict, path: pathlib.Path) -> None:
 
 def write_docs(data: dict, figure_path: pathlib.Path, docs: pathlib.Path = DOCS_PAGE) -> None:
     """The ``suite-v2`` section of the results page: the profile's table and figure (a full run's
-    replaces a reduced one's; the profile note says which it is)."""
+    replaces a reduced one's; the table's first line names the profile)."""
     from experiments.report_markdown import update_readme
 
-    head = f"Profile `{data['profile']}`: {data['profile_note']}.\n\n" if data["profile"] != "full" else ""
-    update_readme(docs, head + markdown(data) + f"\n![suite v2](../figures/{figure_path.name})\n", area=DOCS_AREA)
+    update_readme(docs, markdown(data) + f"\n![suite v2](../figures/{figure_path.name})\n", area=DOCS_AREA)
 
 
 PROFILE_NOTES = {"full": "the suite's own decision", "quick": "a smoke run on fewer draws with the committed RL models; "
