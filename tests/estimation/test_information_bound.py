@@ -4,8 +4,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from hyst_gym.estimation.information_bound import (BoundSetting, SensitivityTable, information_ceiling,
-                                                   magnetization_sensitivity, random_admissible_fields,
+from hyst_gym.estimation.information_bound import (BoundSetting, SensitivityTable, magnetization_sensitivity,
                                                    raised_cosine_fisher, raised_cosine_quantile, van_trees_mse)
 from hyst_gym.physics import HysteresisParams
 
