@@ -252,7 +252,9 @@ def fit_candidate(recording, base: FitResult, effect: str, weights, fit_mask, ma
             scale=max(width, params["zeta_q"].scale))}, max_field_step)
     else:
         starts = _effect_starts(model, effect, base_values)
-        if effect in SENSOR_TERM_EFFECTS:
+        if effect == "mains_pickup":
+            starts = mains_starts(model, starts[0], weights, fit_mask)
+        elif effect in SENSOR_TERM_EFFECTS:
             starts.append(_linear_sensor_start(model, effect, starts[0], fit_mask))
     best = None
     for start in starts:
@@ -273,7 +275,7 @@ RESCUE_RMSE = 3.0
 RESCUED_EFFECTS = {"field_bias": ("H0",), "quadratic_magnetostriction": (),
                    "delta_e": ("delta_e", "delta_e_linear"),
                    "eddy_current": ("k_e",), "thermal_drift": ("heating",), "rod_dynamics": ("f2",),
-                   "sensor_lag": (), "input_map": ("input_saturation", "input_cubic"), "sensor_map": ()}
+                   "sensor_lag": (), "input_map": ("input_saturation", "input_saturation_negative", "input_cubic"), "sensor_map": ()}
 
 
 def _rescue(model, effect, local, weights, fit_mask):
@@ -427,29 +429,31 @@ def _effect_starts(model, effect, base_values):
         return [dict(start, chi_r=p["chi_r"].upper * f) for f in (0.02, 0.2)]
     if effect == "input_map":
         # from the identity and from a moderate saturation (gain at the peak field 0.7 of the small-signal one)
-        return [start, dict(start, input_saturation=1.0)]
-    if effect == "mains_pickup":
-        return [dict(start, mains_hz=mains_frequency(model, base_values))]
+        return [start, dict(start, input_saturation=1.0, input_saturation_negative=1.0)]
     return [start]
 
 
-def mains_frequency(model, base_values) -> float:
-    """50 or 60 Hz: the mains frequency whose sine and cosine (and third harmonics) explain more of the
-    base model's residual, summed over the channels (least squares)."""
-    predicted = model.predict(base_values)
-    time = model.recording.time
-    best, explained_best = 50.0, -1.0
-    for hz in (50.0, 60.0):
-        phase = 2 * np.pi * hz * time
-        design = np.column_stack([np.cos(phase), np.sin(phase), np.cos(3 * phase), np.sin(3 * phase)])
-        explained = 0.0
-        for ch in model.channels:
-            residual = model.recording.output(ch) - predicted[ch]
-            coef, *_ = np.linalg.lstsq(design, residual - residual.mean(), rcond=None)
-            explained += float(np.sum((design @ coef) ** 2)) / (float(np.sum(residual ** 2)) or 1.0)
-        if explained > explained_best:
-            best, explained_best = hz, explained
-    return best
+#: The mains frequencies tried (Hz); each gets its own fit and the lower fitting-block SSE wins.
+MAINS_FREQUENCIES = (50.0, 60.0)
+
+
+def mains_starts(model, start, weights, fit_mask) -> list:
+    """Starts of the mains-pickup fit, one per frequency of :data:`MAINS_FREQUENCIES`, each with the
+    pickup's coefficients solved by linear least squares on the fitting block; best first (fitting-block
+    SSE of the start).
+
+    Why one fit per frequency rather than a choice from the base residual: on a short record (a few
+    cycles) 50 and 60 Hz are far from orthogonal to the slow misfit that the base model leaves
+    where it bent to absorb the pickup, so the residual's projection can pick the wrong one; a fit at
+    each frequency compares them with the hysteresis free. Only the fitting block is read."""
+    scored = []
+    for hz in MAINS_FREQUENCIES:
+        candidate = _linear_sensor_start(model, "mains_pickup", dict(start, mains_hz=hz), fit_mask)
+        predicted = model.predict(candidate)
+        sse = sum(float(np.sum(((predicted[ch] - model.recording.output(ch))[fit_mask]) ** 2))
+                  / weights[ch] ** 2 for ch in model.channels)
+        scored.append((sse, hz, candidate))
+    return [candidate for _, _, candidate in sorted(scored, key=lambda t: t[0])]
 
 
 def diagnose(recording, model: str = "lumped", anhysteretic: str = "ising", fit_mechanics: bool = True,

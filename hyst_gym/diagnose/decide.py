@@ -103,7 +103,8 @@ CONSISTENCY_SPREAD = 0.5
 #: ...or within this many of their own standard errors of each other.
 CONSISTENCY_SIGMAS = 3.0
 #: Parameters whose bounds are search ranges rather than physical walls (a fit may end there).
-SEARCH_RANGES_ONLY = ("tau_th", "g2", "damping2", "input_saturation", "heating_exponent")
+SEARCH_RANGES_ONLY = ("tau_th", "g2", "damping2", "input_saturation", "input_saturation_negative",
+                      "heating_exponent")
 #: The parameter each effect is identified by (refitted per block).
 MAIN_PARAMETER = {"field_bias": "H0", "eddy_current": "k_e", "thermal_drift": "heating",
                   "quadratic_magnetostriction": "zeta_q", "rod_dynamics": "f2", "delta_e": "delta_e",
@@ -185,9 +186,10 @@ def static_map_slopes(effect, values, channels, points: int = 201):
     relative to the small-signal gain) or of each channel's ``sensor_map``."""
     u = np.linspace(-1.0, 1.0, points)
     if effect == "input_map":
-        q, c, s = (values[n] for n in EFFECT_PARAMETERS["input_map"])
+        q, c, s_pos, s_neg = (values[n] for n in EFFECT_PARAMETERS["input_map"])
+        s = np.where(u >= 0.0, s_pos, s_neg)
         root = np.sqrt(1.0 + s * u ** 2)
-        # d/du [u*(1 + q*u + c*u^2)/sqrt(1 + s*u^2)]
+        # d/du [u*(1 + q*u + c*u^2)/sqrt(1 + s*u^2)], s constant on each side (model.mapped_field)
         slope = (1.0 + 2 * q * u + 3 * c * u ** 2) / root - s * u ** 2 * (1.0 + q * u + c * u ** 2) / root ** 3
         return [("input map", slope)]
     out = []

@@ -97,7 +97,12 @@ class Objective:
 def local_fit(model: Model, weights: dict, mask, start: dict | None = None, max_nfev: int = 60,
               tolerance: float = FIT_TOLERANCE) -> FitResult:
     """Bounded trust-region least squares from ``start`` (default: the model's values), stopping at
-    the relative ``tolerance`` (xtol and ftol)."""
+    the relative ``tolerance`` (xtol and ftol). A fixed parameter that ``start`` sets (the mains
+    frequency of one start, say) is held at the start's value, not at the model's."""
+    fixed = {n: v for n, v in (start or {}).items()
+             if n in model.parameters and not model.parameters[n].free and v != model.parameters[n].value}
+    if fixed:
+        model = model.with_values(fixed)
     objective = Objective(model, weights, mask)
     names = model.free_names
     values = model.values() if start is None else {**model.values(), **start}

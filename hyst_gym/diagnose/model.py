@@ -38,10 +38,12 @@ the base model when those parameters vanish:
                                 family holds Clark's M^2 law (delta_e_linear = 0) and a law in
                                 (M - Mb)^2 about another centre Mb (delta_e_linear = -2*delta_e*Mb/Ms)
 ``anhysteretic_shape``          the other anhysteretic curve (Ising <-> Langevin)
-``input_map``                   ``input_quadratic``, ``input_cubic``, ``input_saturation``: the field
-                                is a static map of the recorded one, ``H = H_rec*(1 + q*u + c*u^2)
-                                / sqrt(1 + s*u^2)`` with u = H_rec/max|H_rec| (a saturating amplifier:
-                                s > 0 or c < 0; an asymmetric one: q)
+``input_map``                   ``input_quadratic``, ``input_cubic``, ``input_saturation``,
+                                ``input_saturation_negative``: the field is a static map of the
+                                recorded one, ``H = H_rec*(1 + q*u + c*u^2)/sqrt(1 + s*u^2)`` with
+                                u = H_rec/max|H_rec| and s = input_saturation for u >= 0,
+                                input_saturation_negative for u < 0 (a saturating amplifier: s > 0 or
+                                c < 0; one with unequal rails: the two s; an asymmetric gain: q)
 ``sensor_map``                  ``sensor_quadratic_<ch>``, ``sensor_cubic_<ch>``: each output sensor
                                 has a static nonlinearity, ``y_rec = y + s*(q2*v^2 + q3*v^3)`` with
                                 v = (y - centre)/s over the recorded channel's range (half-span s)
@@ -123,7 +125,7 @@ EFFECT_PARAMETERS = {
     "anhysteretic_shape": (),
     "delta_e": ("delta_e", "delta_e_linear"),
     "small_loop": ("chi_r",),
-    "input_map": ("input_quadratic", "input_cubic", "input_saturation"),
+    "input_map": ("input_quadratic", "input_cubic", "input_saturation", "input_saturation_negative"),
     "sensor_map": SENSOR_MAP_NAMES["magnetization"] + SENSOR_MAP_NAMES["displacement"],
     "sensor_drift": DRIFT_NAMES["magnetization"] + DRIFT_NAMES["displacement"],
     "mains_pickup": ("mains_hz",) + MAINS_NAMES["magnetization"] + MAINS_NAMES["displacement"],
@@ -347,14 +349,21 @@ def relative_stiffness_change(magnetization, values):
     return values.get("delta_e", 0.0) * (m ** 2 - m0 ** 2) + values.get("delta_e_linear", 0.0) * (m - m0)
 
 
-def mapped_field(field, quadratic, cubic, saturation):
+def mapped_field(field, quadratic, cubic, saturation, saturation_negative):
     """The ``input_map`` family: the true field (A/m) for the recorded ``field`` (A/m),
-    ``H*(1 + quadratic*u + cubic*u^2)/sqrt(1 + saturation*u^2)`` with u = H/max|H|: a polynomial
-    and an algebraic sigmoid (close to tanh) in one family, the identity when all three vanish."""
-    if quadratic == 0.0 and cubic == 0.0 and saturation == 0.0:
+    ``H*(1 + quadratic*u + cubic*u^2)/sqrt(1 + s*u^2)`` with u = H/max|H| and s = ``saturation``
+    where u >= 0, ``saturation_negative`` where u < 0: a polynomial and an algebraic sigmoid (close to
+    tanh) in one family, the identity when all four vanish.
+
+    Why two saturations: an amplifier's rails are often unequal, so it saturates at another field on
+    each side; the two sides join with equal value and slope at u = 0 (s*u^2 has zero slope there),
+    and each side is monotone for any s >= 0 (slope (1 + s*u^2)**-1.5 at q = c = 0), where a
+    polynomial asymmetry (q) large enough to mimic unequal rails would fold back."""
+    if quadratic == 0.0 and cubic == 0.0 and saturation == 0.0 and saturation_negative == 0.0:
         return field
     u = field / (float(np.max(np.abs(field))) or 1.0)
-    return np.ascontiguousarray(field * (1.0 + quadratic * u + cubic * u ** 2) / np.sqrt(1.0 + saturation * u ** 2))
+    s = np.where(u >= 0.0, saturation, saturation_negative)
+    return np.ascontiguousarray(field * (1.0 + quadratic * u + cubic * u ** 2) / np.sqrt(1.0 + s * u ** 2))
 
 
 def channel_range(signal):
@@ -510,7 +519,9 @@ def extension_parameters(recording: Recording, structure: Structure, base_values
         out["input_quadratic"] = Parameter("input_quadratic", 0.0, -0.5, 0.5, "1 (per unit H/max|H|)", scale=0.05)
         out["input_cubic"] = Parameter("input_cubic", 0.0, -0.33, 1.0, "1 (per unit (H/max|H|)^2)", scale=0.05)
         # gain at the peak field down to 1/sqrt(1 + 30) = 0.18 of the small-signal gain
-        out["input_saturation"] = Parameter("input_saturation", 0.0, 0.0, 30.0, "1 (per unit (H/max|H|)^2)",
+        out["input_saturation_negative"] = Parameter("input_saturation_negative", 0.0, 0.0, 30.0,
+                                                     "1 (per unit (H/max|H|)^2, where H < 0)", scale=0.5)
+        out["input_saturation"] = Parameter("input_saturation", 0.0, 0.0, 30.0, "1 (per unit (H/max|H|)^2, where H >= 0)",
                                             scale=0.5)
     elif effect in ("sensor_drift", "mains_pickup"):
         if effect == "mains_pickup":

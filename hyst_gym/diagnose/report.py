@@ -167,6 +167,8 @@ def _verdict_words(report) -> str:
     if chosen.effect == "quadratic_magnetostriction" and values.get("zeta_q"):
         extra = (f" (an M^2 law: zetahat/(2*zeta_q) = {values['zetahat'] / (2 * values['zeta_q']):.4g} A/m "
                  f"is the bias magnetization it implies)") if "zetahat" in values else ""
+    if chosen.effect == "mains_pickup":
+        extra = f" (at {values['mains_hz']:.0f} Hz, the better fit of 50 and 60 Hz)"
     runner = sorted([c for c in report.candidates if c is not chosen], key=lambda c: -c.improvement)
     second = f" The runner-up, {runner[0].effect}, reached {100 * runner[0].improvement:.0f} %." if runner else ""
     return (f"The recording shows {EFFECT_WORDS[chosen.effect]}. Evidence: {loc}. Adding it to the base model "

@@ -192,15 +192,15 @@ def test_input_map_family_identity_and_algebraic_sigmoid():
     from hyst_gym.diagnose.model import mapped_field
 
     h = np.linspace(-3e4, 3e4, 301)
-    assert mapped_field(h, 0.0, 0.0, 0.0) is h
+    assert mapped_field(h, 0.0, 0.0, 0.0, 0.0) is h
     s = 0.6
-    np.testing.assert_allclose(mapped_field(h, 0.0, 0.0, s), h / np.sqrt(1 + s * (h / 3e4) ** 2), rtol=1e-12)
+    np.testing.assert_allclose(mapped_field(h, 0.0, 0.0, s, s), h / np.sqrt(1 + s * (h / 3e4) ** 2), rtol=1e-12)
     # a tanh with the same peak value and slope 1 at 0: Hs*tanh(Hmax/Hs) = Hmax/sqrt(1 + s)
     from scipy.optimize import brentq
 
     peak = 3e4 / np.sqrt(1 + s)
     hs = brentq(lambda x: x * np.tanh(3e4 / x) - peak, 1e3, 1e7)
-    assert np.max(np.abs(mapped_field(h, 0.0, 0.0, s) - hs * np.tanh(h / hs))) < 0.05 * peak
+    assert np.max(np.abs(mapped_field(h, 0.0, 0.0, s, s) - hs * np.tanh(h / hs))) < 0.05 * peak
 
 
 def test_static_maps_must_be_monotone_to_be_plausible():
@@ -209,12 +209,15 @@ def test_static_maps_must_be_monotone_to_be_plausible():
     from hyst_gym.diagnose.decide import static_map_slopes
     from hyst_gym.diagnose.model import mapped_field
 
-    values = {"input_quadratic": 0.3, "input_cubic": -0.2, "input_saturation": 2.0}
+    values = {"input_quadratic": 0.3, "input_cubic": -0.2, "input_saturation": 2.0, "input_saturation_negative": 6.0}
     (_, slope), = static_map_slopes("input_map", values, ())
     u = np.linspace(-1.0, 1.0, 201)
-    numeric = np.gradient(mapped_field(u, 0.3, -0.2, 2.0), u)
+    numeric = np.gradient(mapped_field(u, 0.3, -0.2, 2.0, 6.0), u)
     np.testing.assert_allclose(slope[1:-1], numeric[1:-1], atol=2e-3)
-    folding = {"input_quadratic": 0.5, "input_cubic": -0.33, "input_saturation": 0.0}
+    # unequal rails alone never fold back, however unequal
+    rails = dict(input_quadratic=0.0, input_cubic=0.0, input_saturation=0.5, input_saturation_negative=30.0)
+    assert np.min(static_map_slopes("input_map", rails, ())[0][1]) > 0.0
+    folding = {"input_quadratic": 0.5, "input_cubic": -0.33, "input_saturation": 0.0, "input_saturation_negative": 0.0}
     assert np.min(static_map_slopes("input_map", folding, ())[0][1]) < 0.0
     sensor = {"sensor_quadratic_x": 0.1, "sensor_cubic_x": -0.2, "sensor_quadratic_m": 0.0, "sensor_cubic_m": 0.0}
     (_, x_slope), = static_map_slopes("sensor_map", sensor, ("displacement",))
@@ -225,7 +228,7 @@ def test_additive_sensor_terms_are_what_they_say():
     """sensor_drift adds Legendre P1, P2 of the time in units of the channel's half-span, mains_pickup a
     50/60 Hz sinusoid and its third harmonic (the FFT peaks at the stated frequencies); both vanish at
     zero coefficients."""
-    from hyst_gym.diagnose.core import mains_frequency
+    from hyst_gym.diagnose.core import mains_starts
     from hyst_gym.diagnose.model import channel_range
 
     recording, _, _ = make_recording_with_truth("none", 3, output="both", n_samples=4000)
@@ -258,4 +261,8 @@ def test_additive_sensor_terms_are_what_they_say():
 
     noisy = replaced(recording, magnetization=recording.magnetization + added)
     fitted = Model(noisy, structure, params, 200.0)
-    assert mains_frequency(fitted, values) == 60.0
+    fit_mask = np.arange(time.size) < 0.75 * time.size
+    weights = {ch: noise_level(noisy.output(ch)) for ch in noisy.channels}
+    best = mains_starts(fitted, values, weights, fit_mask)[0]
+    assert best["mains_hz"] == 60.0
+    assert best["mains_sin_m"] > 0.05 and best["mains3_cos_m"] > 0.05  # the pickup's own sign and order
