@@ -9,7 +9,7 @@ import numpy as np
 
 from ..physics.constants import ROOM_TEMPERATURE
 from .fit import FitResult
-from .model import (EFFECT_PARAMETERS, SENSOR_MAP_NAMES, channel_range, mapped_field, relative_stiffness_change,
+from .model import (EFFECT_PARAMETERS, FEM_ROD_NAMES, SENSOR_MAP_NAMES, channel_range, mapped_field, relative_stiffness_change,
                     slope_factor)
 
 EFFECT_WORDS = {
@@ -35,7 +35,8 @@ EFFECT_WORDS = {
 }
 UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "heating_exponent": "", "tau_th": "s", "beta_Ms": "1/K",
          "tau_m": "s", "tau_x": "s", "zeta_q": "m/s^2 per (A/m)^2", "f2": "Hz", "damping2": "", "g2": "",
-         "delta_e": "", "delta_e_linear": "", "chi_r": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "", "alpha": ""}
+         "delta_e": "", "delta_e_linear": "", "chi_r": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "", "alpha": "",
+         "Y": "Pa", "ML": "kg", "cD": "Pa s", "khat": "1/s^2", "chat": "1/s"}
 
 
 def physical_params(fit: FitResult) -> dict:
@@ -156,6 +157,10 @@ def _verdict_words(report) -> str:
     chosen = report.chosen
     fit = chosen.fit
     names = EFFECT_PARAMETERS[chosen.effect] or ("a", "k", "alpha", "Ms", "c")
+    continuum = getattr(report, "continuum", {}) or {}
+    if continuum.get("named"):
+        # another base (the FEM rod) or released mechanics: its own mechanical parameters tell the story
+        names = FEM_ROD_NAMES if fit.model.structure.transducer == "fem" else names + ("khat", "chat")
     values = dict(fit.values)
     values.update(physical_params(fit))
     params = ", ".join(_fmt(n, values, fit.uncertainties) for n in names if fit.model.parameters.get(n) is None
@@ -167,11 +172,15 @@ def _verdict_words(report) -> str:
     if chosen.effect == "quadratic_magnetostriction" and values.get("zeta_q"):
         extra = (f" (an M^2 law: zetahat/(2*zeta_q) = {values['zetahat'] / (2 * values['zeta_q']):.4g} A/m "
                  f"is the bias magnetization it implies)") if "zetahat" in values else ""
+    if continuum.get("named"):
+        extra = (f" (continuum mechanics, {continuum['explained_by']}; nominal lumped first resonance "
+                 f"{continuum['first_resonance_hz']:.4g} Hz)")
     if chosen.effect == "mains_pickup":
         extra = f" (at {values['mains_hz']:.0f} Hz, the better fit of 50 and 60 Hz)"
     runner = sorted([c for c in report.candidates if c is not chosen], key=lambda c: -c.improvement)
     second = f" The runner-up, {runner[0].effect}, reached {100 * runner[0].improvement:.0f} %." if runner else ""
-    return (f"The recording shows {EFFECT_WORDS[chosen.effect]}. Evidence: {loc}. Adding it to the base model "
+    how = "Modelling it" if continuum.get("named") else "Adding it to the base model"
+    return (f"The recording shows {EFFECT_WORDS[chosen.effect]}. Evidence: {loc}. {how} "
             f"with fitted {params}{extra} lowers the held-out RMSE from {base:.2f} to {chosen.heldout_rmse:.2f} "
             f"noise units ({100 * chosen.improvement:.0f} % lower), and the BIC on the fitting block by "
             f"{report.baseline.bic - chosen.bic:.0f}.{second} Verdict: {chosen.effect} "
