@@ -77,6 +77,23 @@ def record_temperature_rise(recording, values) -> float:
     return float(temperature_rise_trace(recording, values)[-1])
 
 
+def thermal_change_words(recording, values) -> str:
+    """What a thermal_drift fit determines, in words: the change of a and Ms over the record, and the
+    temperature rise that the laws a ~ T (4) and Ms*(1 - beta*theta) imply.
+
+    Why both: without a temperature channel the record determines how a and Ms changed, not the
+    temperature; the rise is read off through the a(T) law, so it is only as right as that law (near a
+    Curie point, say, a and Ms change far faster per kelvin than a ~ T and the implied rise is too
+    large). The report says so instead of stating the rise as a measurement."""
+    rise = record_temperature_rise(recording, values)
+    a_change = rise / ROOM_TEMPERATURE  # a ~ T: relative change of a = rise / T_amb
+    ms_change = -values.get("beta_Ms", 0.0) * rise
+    return (f"over the record a changes by {100 * a_change:+.3g} % and Ms by {100 * ms_change:+.3g} %; the "
+            f"temperature rise that the law a ~ T (4) implies is {rise:.3g} K, an inference through that law, "
+            f"not a measurement: the record determines the changes of a and Ms, and the rise is right only where "
+            f"a(T) is proportional to T (not near a Curie point); a temperature channel would measure it")
+
+
 def slot_shapes(fit) -> list:
     """The fitted shape of the slot an extension fills, as curves to plot (issue 22: "model it"):
     ``(file stem, title, x label, y label, [(label, x, y), ...])`` per plot; empty for extensions
@@ -167,8 +184,7 @@ def _verdict_words(report) -> str:
                        or fit.model.parameters[n].free or n == "alpha")
     extra = ""
     if chosen.effect == "thermal_drift":
-        extra = (f" (temperature rise over the record: {record_temperature_rise(fit.model.recording, values):.3g} K; "
-                 f"a(T) slope a/T_amb = {values['a'] / ROOM_TEMPERATURE:.4g} A/m per K)")
+        extra = f" ({thermal_change_words(fit.model.recording, values)})"
     if chosen.effect == "quadratic_magnetostriction" and values.get("zeta_q"):
         extra = (f" (an M^2 law: zetahat/(2*zeta_q) = {values['zetahat'] / (2 * values['zeta_q']):.4g} A/m "
                  f"is the bias magnetization it implies)") if "zetahat" in values else ""

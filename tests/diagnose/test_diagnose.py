@@ -85,6 +85,24 @@ def test_record_temperature_rise_matches_the_first_order_law():
                                                                                                  rel=1e-5)
 
 
+def test_thermal_words_state_the_changes_and_that_the_rise_is_an_inference():
+    """The report states the fitted change of a (rise/T_amb under a ~ T, eq. 4) and of Ms
+    (-beta_Ms*rise), and says that the temperature rise is inferred through the a(T) law."""
+    from types import SimpleNamespace
+
+    from hyst_gym.diagnose.report import record_temperature_rise, thermal_change_words
+    from hyst_gym.physics.constants import ROOM_TEMPERATURE
+
+    time = np.linspace(0.0, 2.0, 2001)
+    recording = SimpleNamespace(time=time, field=np.full_like(time, 3.0e4))
+    values = {"heating": 1e-8, "tau_th": 1e6, "beta_Ms": 0.002}
+    rise = record_temperature_rise(recording, values)
+    words = thermal_change_words(recording, values)
+    assert f"a changes by {100 * rise / ROOM_TEMPERATURE:+.3g} %" in words
+    assert f"Ms by {-100 * 0.002 * rise:+.3g} %" in words
+    assert f"{rise:.3g} K" in words and "not a measurement" in words
+
+
 def test_heating_law_family_against_an_independent_integration():
     """The thermal family's drive heating*h_ref^2*(|H|/h_ref)^p: the report's temperature trace for
     p = 1 matches scipy's solve_ivp of dT/dt = drive - T/tau (field held between samples), and the
