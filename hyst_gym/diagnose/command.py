@@ -23,11 +23,14 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", type=Path, help="write the machine-readable report here")
     parser.add_argument("--plots", type=Path, help="write PNG plots into this folder")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="threads fitting candidates at once (default: the cores, at most 4)")
 
 
 def main(args) -> int:
     report = diagnose(args.recording, model=args.model, anhysteretic=args.anhysteretic,
-                      fit_mechanics=not args.fix_mechanics, holdout=args.holdout, progress=not args.quiet)
+                      fit_mechanics=not args.fix_mechanics, holdout=args.holdout, progress=not args.quiet,
+                      workers=args.workers)
     print(f"verdict: {report.verdict} (confidence {report.confidence:.2f}, held-out RMSE "
           f"{report.baseline_heldout:.3g} -> "
           f"{report.chosen.heldout_rmse if report.chosen else report.baseline_heldout:.3g} noise units)")

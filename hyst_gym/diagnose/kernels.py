@@ -38,13 +38,16 @@ from ..physics.hysteresis import (advance_one, magnetization_slope, simulate_sha
 from ..physics.linear_system import first_order_hold, lti_step
 from ..physics.thermal import a_law_kernel, mean_square_linear_kernel
 
+# Every kernel here releases the GIL (nogil=True): the tool fits its candidates in threads
+# (core.diagnose, ``workers``), and nearly all of a fit's time is spent in these simulations.
+
 #: Columns of the per-member magnetic parameter matrix used by :func:`simulate_members`.
 MAGNETIC_COLUMNS = ("a", "k", "alpha", "Ms", "c", "H0", "k_e", "heating", "tau_th", "beta_Ms", "chi_r",
                     "heating_exponent")
 AMBIENT_TEMPERATURE = ROOM_TEMPERATURE  # K, reference temperature of the fitted a (eq. 4)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _advance(m, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step):
     # One member, scalar: the physics layer's substeps and midpoint rule of (6), so a member
     # gives the bank kernel's numbers.
@@ -52,7 +55,7 @@ def _advance(m, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step):
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def simulate_members(time, field, params, kind, max_field_step, ambient):
     """Magnetization (A/m), shape ``(T, B)``, of ``B`` extended models under one field.
 
@@ -91,7 +94,7 @@ def simulate_members(time, field, params, kind, max_field_step, ambient):
 BANK_LANES = 8
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _simulate_shared_field(field, params, kind, max_field_step, out, columns):
     # every member starts demagnetized at H = 0 and is brought to the first sample: the physics
     # layer's bank trajectory over the field with H = 0 put in front
@@ -119,7 +122,7 @@ def _simulate_shared_field(field, params, kind, max_field_step, out, columns):
             out[t, columns[i]] = trajectory[t + 1, i]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _simulate_one(time, field, row, kind, max_field_step, ambient, out, b):
     """One extended member (eddy currents or heating), sample after sample, into ``out[:, b]``."""
     if row[10] != 0.0:
@@ -181,7 +184,7 @@ def _simulate_one(time, field, row, kind, max_field_step, ambient, out, b):
         out[t, b] = m
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _step_lti(forcing, classes, phis, gamma0s, gamma1s, C, x0):
     n = forcing.shape[0]
     order = x0.shape[0]
@@ -245,7 +248,7 @@ def _first_order_hold(A, B, steps):
     return phis, gamma0s, gamma1s
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _step_varying_stiffness(forcing, relative_stiffness, stiffness, classes, phis, gamma0s, gamma1s, x0):
     # The stiffness change enters as a force -stiffness*e(t)*x on the exactly discretized
     # constant-stiffness system; a predictor-corrector step makes that coupling second order.

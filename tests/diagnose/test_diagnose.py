@@ -135,3 +135,20 @@ def test_heating_law_family_against_an_independent_integration():
     np.testing.assert_allclose(m[:, 0], m[:, 1], rtol=0, atol=1e-4 * 8e5)
     m_sine = simulate_members(time, field, rows, 0, 500.0, AMBIENT_TEMPERATURE)
     assert np.max(np.abs(m_sine[:, 0] - m_sine[:, 2])) > 1e-3 * 8e5   # a varying |H| feels the law
+
+
+def test_candidates_fitted_in_threads_give_the_same_report(tmp_path, capsys):
+    """Fitting the candidates in 1 or 3 threads gives the same report, number for number (each fit
+    is deterministic and independent of the others); a bad thread count is a one-line error."""
+    rec, _ = make_recording("field_bias", 7, n_samples=700)
+    one = diagnose(rec, progress=False, workers=1).to_json()
+    three = diagnose(rec, progress=False, workers=3).to_json()
+    one.pop("seconds"), three.pop("seconds")
+    assert json.dumps(one, sort_keys=True, default=str) == json.dumps(three, sort_keys=True, default=str)
+    for bad in (0, 1.5, True):
+        with pytest.raises(ValueError, match="workers"):
+            diagnose(rec, progress=False, workers=bad)
+    path = write_recording(tmp_path / "r.csv", rec, {})
+    assert cli.main(["diagnose", str(path), "--quiet", "--workers", "0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "workers" in err[0]
