@@ -8,7 +8,10 @@ and seed, and diagnoses it again in this process alone, with the 1-min load aver
 after. Results go to ``experiments/results/diagnose/speed_<samples>.{json,md}``. With ``--samples 20000`` the
 own generator's recordings are regenerated at the issue's record length (same effect and seed).
 
-    .venv/bin/python -m experiments.diagnose_speed --slowest 6 --samples 20000
+    .venv/bin/python -m experiments.diagnose_speed --slowest 6 --samples 20000 [--workers N] [--page docs/speed.md]
+
+``--workers`` is the tool's thread count (default: the tool's default, the cores up to 4); with
+``--page`` the table also goes into the page's ``diagnose-speed`` section.
 """
 
 from __future__ import annotations
@@ -17,34 +20,40 @@ import argparse
 import json
 import os
 import time
+from pathlib import Path
 
 from experiments.diagnose_concealed import RESULTS, RUNS, load_rows, make
 from hyst_gym.diagnose import diagnose
+from hyst_gym.diagnose.core import DEFAULT_WORKERS
 
 
 def slowest_rows(rows, count):
     return sorted(rows, key=lambda r: -float(r["seconds"]))[:count]
 
 
-def time_one(row, samples):
+def time_one(row, samples, workers):
     recording, _ = make(row["generator"], row["channels"], row["effect"], int(row["seed"]), samples)
     load_before = os.getloadavg()[0]
     started = time.perf_counter()
-    report = diagnose(recording, progress=False)
+    report = diagnose(recording, progress=False, workers=workers)
     seconds = time.perf_counter() - started
     return {"generator": row["generator"], "channels": row["channels"], "effect": row["effect"],
-            "seed": int(row["seed"]), "samples": recording.size, "seconds_alone": seconds,
+            "seed": int(row["seed"]), "samples": recording.size, "seconds_alone": seconds, "workers": workers,
             "seconds_in_study": float(row["seconds"]), "study_load_average": float(row["load_average"]),
             "load_average_before": load_before, "load_average_after": os.getloadavg()[0],
             "verdict": report.verdict, "verdict_in_study": row["verdict"]}
 
 
 def markdown(results):
-    lines = ["| generator / channels | effect | seed | samples | s alone | 1-min load before / after | s in the study (load) "
-             "| verdict (study) |", "|---|---|---|---|---|---|---|---|"]
+    lines = [f"Written by `python -m experiments.diagnose_speed --samples {results[0]['samples']}` ({os.cpu_count()} cores; "
+             "each recording diagnosed alone, in one process, with the tool's threads). Target (issue 22): at most 20 s "
+             "per 20,000-sample recording.", "",
+             "| generator / channels | effect | seed | samples | threads | s alone | 1-min load before / after "
+             "| s in the study (load) | verdict (study) |", "|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         lines.append(f"| {r['generator']}/{r['channels']} | {r['effect']} | {r['seed']} | {r['samples']:,} | "
-                     f"{r['seconds_alone']:.1f} | {r['load_average_before']:.1f} / {r['load_average_after']:.1f} | "
+                     f"{r['workers']} | {r['seconds_alone']:.1f} | {r['load_average_before']:.1f} / "
+                     f"{r['load_average_after']:.1f} | "
                      f"{r['seconds_in_study']:.1f} ({r['study_load_average']:.1f}) | {r['verdict']} ({r['verdict_in_study']}) |")
     slowest = max(results, key=lambda r: r["seconds_alone"])
     lines.append("")
@@ -59,18 +68,29 @@ def main(argv=None):
     parser.add_argument("--samples", type=int, default=4000,
                         help="samples per own-generator recording (default 4000, as in the study; 20000 times "
                         "the study's slowest own-generator cases at the issue's record length)")
+    parser.add_argument("--workers", type=int, default=DEFAULT_WORKERS,
+                        help=f"the tool's threads (default {DEFAULT_WORKERS}: the cores, at most 4)")
+    parser.add_argument("--page", type=Path, help="also write the table into this page's diagnose-speed section")
     args = parser.parse_args(argv)
     if args.slowest < 1:
         parser.error("--slowest must be >= 1")
+    if args.workers < 1:
+        parser.error("--workers must be >= 1")
+    if args.page is not None and not args.page.is_file():
+        parser.error(f"--page {args.page}: no such file")
     rows = load_rows(RUNS)
     if not rows:
         parser.error(f"no study rows in {RUNS}: run experiments.diagnose_concealed first")
-    results = [time_one(row, args.samples) for row in slowest_rows(rows, args.slowest)]
+    results = [time_one(row, args.samples, args.workers) for row in slowest_rows(rows, args.slowest)]
     RESULTS.mkdir(parents=True, exist_ok=True)
     stem = f"speed_{args.samples}"
     (RESULTS / f"{stem}.json").write_text(json.dumps(results, indent=2, default=float) + "\n")
     text = markdown(results)
     (RESULTS / f"{stem}.md").write_text(text)
+    if args.page is not None:
+        from experiments.report_markdown import update_readme
+
+        update_readme(args.page, text, area="diagnose-speed")
     print(text)
     return 0
 

@@ -53,9 +53,11 @@ def test_speed_script_times_the_slowest_rows_alone():
     assert [r["id"] for r in slowest_rows(rows, 2)] == ["b", "c"]
     common = {"generator": "own", "channels": "both", "effect": "rod_dynamics", "seed": 100,
               "seconds_in_study": 30.0, "study_load_average": 5.0, "load_average_before": 1.0,
-              "load_average_after": 1.2, "verdict": "rod_dynamics", "verdict_in_study": "rod_dynamics"}
+              "load_average_after": 1.2, "verdict": "rod_dynamics", "verdict_in_study": "rod_dynamics",
+              "workers": 2}
     text = markdown([dict(common, samples=4000, seconds_alone=10.0), dict(common, samples=20000, seconds_alone=30.0)])
     assert text.rstrip().endswith("Largest time alone: 30.0 s (20,000 samples, 1-min load 1.0).")
+    assert "| own/both | rod_dynamics | 100 | 20,000 | 2 | 30.0 |" in text
 
 
 def test_before_after_pairs_the_same_recordings_and_rescores_with_one_yardstick():
