@@ -169,6 +169,9 @@ def main(argv=None):
                         "<!-- section:other-forms --> block (e.g. docs/results/diagnose.md)")
     parser.add_argument("--summarize", type=Path, metavar="JSON",
                         help="diagnose nothing: rewrite the .md (and --page) from a stored study JSON")
+    parser.add_argument("--before", type=Path, metavar="JSON", default=RESULTS / "other_forms_before.json",
+                        help="an earlier study JSON: a before/after table on the recordings both contain "
+                        "(default experiments/results/diagnose/other_forms_before.json, if present)")
     args = parser.parse_args(argv)
     if args.summarize is not None:
         if not args.summarize.is_file():
@@ -201,9 +204,37 @@ def main(argv=None):
     print("\n".join(_table("Per case and channel set", summary["per_case_and_channel_set"])))
 
 
+def before_after(before_rows, after_rows) -> list[str]:
+    """Markdown lines: per case, on the recordings (case, channels, seed) that both row sets contain,
+    right and wrong names before -> after, and how many verdicts changed."""
+    key = lambda r: (r["case"], r["channels"], int(r["seed"]))  # noqa: E731
+    earlier = {key(r): r for r in before_rows}
+    pairs = [(earlier[key(r)], r) for r in after_rows if key(r) in earlier]
+    lines = ["| case | recordings | right before → after | right or ambiguous with truth before → after "
+             "| wrong names before → after | verdicts changed |", "|---|---|---|---|---|---|"]
+    for case in sorted({a["case"] for _, a in pairs}) + ["all"]:
+        group = [(b, a) for b, a in pairs if case in ("all", a["case"])]
+        # both scored by today's yardstick (outcome() reads the case's right verdicts now)
+        scored = [(outcome(b["case"], b["verdict"], b.get("tied") or []), outcome(a["case"], a["verdict"], a.get("tied") or []))
+                  for b, a in group]
+        count = lambda which, names: sum(s[which] in names for s in scored)  # noqa: E731
+        lines.append(f"| {case} | {len(group)} | {count(0, ('right',))} → {count(1, ('right',))} | "
+                     f"{count(0, ('right', 'ambiguous_with_truth'))} → {count(1, ('right', 'ambiguous_with_truth'))} | "
+                     f"{count(0, ('wrong_name',))} → {count(1, ('wrong_name',))} | "
+                     f"{sum(b['verdict'] != a['verdict'] for b, a in group)} |")
+    return lines
+
+
 def _write_texts(args, payload):
     """The study's markdown, and with ``--page`` its tables (less the title) in the page's section."""
     text = markdown(payload["summary"], payload["rows"], payload["command"], payload["skipped"])
+    before = getattr(args, "before", None)
+    if before is not None and before.is_file():
+        earlier = json.loads(before.read_text())
+        text += "\n".join(["", "## Before and after (the same recordings)", "",
+                           f"Rows of `{before.name}` (`{earlier['command']}`, an earlier tool) against this run, "
+                           "on the recordings both contain, both scored by today's right verdicts.", ""]
+                          + before_after(earlier["rows"], payload["rows"])) + "\n"
     args.out.with_suffix(".md").write_text(text)
     if args.page is not None:
         from experiments.report_markdown import update_readme
