@@ -40,6 +40,10 @@ class Law(IntEnum):
     HELD = 2
 
 
+# The small helpers below are forceinline=True (LLVM inlining), not inline="always" (numba's
+# IR inliner, which re-translates the callee at every call site): the same machine code for
+# less compilation (see the note on inlining in physics/hysteresis.py).
+
 # plain integers for the kernels (numba freezes module globals as compile-time constants)
 _MINMAX = int(Law.MINMAX)
 _GRADIENT = int(Law.GRADIENT)
@@ -103,7 +107,7 @@ def advance_bank(bank, field_to, params):
     return total
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _locate(grid, theta):
     """Index j of the interval [grid[j], grid[j+1]) holding theta (clamped to the ends)."""
     G = grid.shape[0]
@@ -121,7 +125,7 @@ def _locate(grid, theta):
     return j
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _node_slope(values, grid, j):
     """Finite-difference slope at node j: centred inside, 2nd-order one-sided at the ends."""
     G = grid.shape[0]
@@ -244,7 +248,7 @@ def minmax_one(grid, g, theta_hat, sign, gradient, xs, ys, hull):
     return 0.0, sign * gradient  # unreachable: the hull spans [xs[0], xs[n-1]]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _minmax_workspace(G):
     """Work arrays of :func:`minmax_one` on a grid of G nodes: xs, ys, hull (G + 1) and g (G)."""
     return np.empty(G + 1), np.empty(G + 1), np.empty(G + 1, dtype=np.int64), np.empty(G)
@@ -263,7 +267,7 @@ def minmax_batch(grid, values, theta_hat, value_hat, gradient, sign, out_nu, out
         out_phi[e] = phi
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _interpolate_one(grid, row, t):
     """(f, df, d2f) of the cubic Hermite interpolant of ``row`` at ``t`` (see interpolate_bank)."""
     j = _locate(grid, t)
@@ -288,7 +292,7 @@ def _interpolate_one(grid, row, t):
     return value, slope, curvature
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _boundary_layer(z_free, kappa_pos, kappa_neg, eps):
     """Root z of ``z + kappa_sign(z)*sat(z/eps) = z_free`` (both kappas > -eps)."""
     if z_free >= eps + kappa_pos:
@@ -300,7 +304,7 @@ def _boundary_layer(z_free, kappa_pos, kappa_neg, eps):
     return z_free + kappa_neg
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def minmax_law(grid, g, theta_hat, z_free, slope, weight, offset, eps, xs, ys, hull):
     """The min-max law at one system: returns ``(z, nu_star, phi_star)``.
 
@@ -330,7 +334,7 @@ def minmax_law(grid, g, theta_hat, z_free, slope, weight, offset, eps, xs, ys, h
     return z, nu_neg, phi_neg
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def gradient_law(z_free, slope, weight, offset, eps):
     """The gradient law at one system: returns ``(z, 0, df/dtheta)``: the min-max law of
     (16)/(25) with the bank's slope at thetahat in place of phi_star and no min-max gap in yhat."""
@@ -338,7 +342,7 @@ def gradient_law(z_free, slope, weight, offset, eps):
     return z, 0.0, slope
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def held_law(z_free, weight, offset, eps):
     """No parameter law: returns ``(z, 0, 0)``, so :func:`adaptation_step` leaves thetahat
     where it is (the estimator sets it in Python); yhat keeps the dead-zone feedback of (14)."""
@@ -346,7 +350,7 @@ def held_law(z_free, weight, offset, eps):
     return z, 0.0, 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def adaptation_step(theta_hat, dt, gamma, gain, y_eps, phi, lo, hi):
     """Explicit Euler step of ``thetahat' = -gamma*nu*y_eps*phi`` ((16) scalar, with nu the
     plant gain; (25) vector, gain 1), clipped into Theta = [lo, hi]."""
@@ -447,7 +451,8 @@ def refresh(grid, values, measured, state, observer):
         out_phi[e] = phi
 
 
-@njit(cache=True)
+# inline="always": the env compiles it as part of its excitation_step (see envs/kernels.py)
+@njit(cache=True, inline="always")
 def estimator_step(field, measured, bank, bank_params, state, observer, hold):
     """One whole control step of every system: bank advance, then :func:`observer_step`.
 

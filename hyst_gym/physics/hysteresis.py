@@ -246,6 +246,17 @@ class HysteresisBatch:
 # switch dhat and the guard are selects rather than branches, tanh is inlined
 # (anhysteretic.tanh_expm1), and error_model="numpy" drops Python's division-by-zero
 # check (a division that can only yield a discarded lane never raises).
+#
+# Inlining: the small functions (here and in anhysteretic.py) are forceinline=True, which
+# numba passes to LLVM as `alwaysinline`, rather than inline="always", numba's own IR
+# inliner. Both give the same SIMD bank loop (same machine code, same numbers), but the IR
+# inliner translates the callee's whole tree again at every call site -- with both curves
+# in every copy of anhysteretic_unit -- and cost about half of an environment's first-step
+# compilation (issue 24; docs/speed.md). With LLVM inlining each function is compiled once,
+# and where the call site knows the curve LLVM drops the other one. inline="always" is kept
+# where it is cheap: on the layers (_advance_bank, advance_shared) whose callees are all
+# ordinary calls, so that a caller does not build, optimize and emit them as a library of
+# their own. Their bodies hold no division, so the caller's error model does not matter.
 
 
 #: The constants of (6) for one model in one direction of travel, formed once per lane so that
@@ -255,14 +266,14 @@ LaneConstants = namedtuple("LaneConstants",
                            ("alpha", "inv_a", "Ms", "ms_over_a", "k_delta", "alphahat", "c", "alpha_c"))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True, error_model="numpy")
 def lane_constants(a, k, alpha, Ms, c, delta):
     """:data:`LaneConstants` of one model moving in direction ``delta`` (+-1)."""
     inv_a = 1.0 / a
     return LaneConstants(alpha, inv_a, Ms, Ms * inv_a, k * delta, alpha / (1.0 - c), c, alpha * c)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, forceinline=True, error_model="numpy")
 def _slope_terms(field, magnetization, delta, lane, kind):
     """The two terms of (6): the irreversible ``dhat*(Man - M)/(k*delta - alphahat*(Man - M))``
     and ``Man'`` (both per A/m of H), from a model's :data:`LaneConstants`."""
@@ -279,14 +290,14 @@ def _slope_terms(field, magnetization, delta, lane, kind):
     return irreversible, man_slope
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, forceinline=True, error_model="numpy")
 def _slope(field, magnetization, delta, lane, kind):
     """dM/dH of (6) from a model's :data:`LaneConstants`."""
     irreversible, man_slope = _slope_terms(field, magnetization, delta, lane, kind)
     return (irreversible + lane.c * man_slope) / (1.0 - lane.alpha_c * man_slope)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, forceinline=True, error_model="numpy")
 def _midpoint(field, magnetization, step, delta, lane, kind):
     slope_start = _slope(field, magnetization, delta, lane, kind)
     half = magnetization + (0.5 * step) * slope_start
@@ -294,13 +305,13 @@ def _midpoint(field, magnetization, step, delta, lane, kind):
     return magnetization + step * slope_mid
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, forceinline=True, error_model="numpy")
 def magnetization_slope(field, magnetization, delta, a, k, alpha, Ms, c, kind):
     """dM/dH of eq. (6) at one state, for a field moving in direction ``delta`` (+-1)."""
     return _slope(field, magnetization, delta, lane_constants(a, k, alpha, Ms, c, delta), kind)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, forceinline=True, error_model="numpy")
 def advance_one(magnetization, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step):
     """One model moved from ``field_from`` to ``field_to`` (A/m): returns its new M (A/m) and the
     number of substeps taken (0 when the field did not move). The arithmetic of every layout."""
@@ -311,14 +322,14 @@ def advance_one(magnetization, field_from, field_to, a, k, alpha, Ms, c, kind, m
     return magnetization, n
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def substep_count(field_change, max_field_step):
     """Number of equal substeps of at most ``max_field_step`` covering ``field_change``."""
     n = int(math.ceil(abs(field_change) / max_field_step))
     return n if n > 0 else 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True, error_model="numpy")
 def monotone_substeps(field_change, max_field_step):
     """(count, length, direction) of the equal substeps covering one monotone field change;
     count 0 when the field does not move."""
@@ -343,32 +354,38 @@ def bank_constants(a, k, alpha, Ms, c):
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, forceinline=True, error_model="numpy")
+def _bank_substeps(magnetization, field_from, n, step, delta, alpha, Ms, c, inv_a, ms_over_a, k, alphahat, alpha_c,
+                   kind):
+    """The ``n`` midpoint substeps of :func:`_advance_bank`: substeps outer, models inner."""
+    for s in range(n):
+        field = field_from + s * step
+        for b in range(magnetization.shape[0]):  # the SIMD loop
+            lane = LaneConstants(alpha[b], inv_a[b], Ms[b], ms_over_a[b], k[b] * delta, alphahat[b], c[b],
+                                 alpha_c[b])
+            magnetization[b] = _midpoint(field, magnetization[b], step, delta, lane, kind)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _advance_bank(magnetization, field_from, field_to, alpha, Ms, c, constants, kind, max_field_step):
     n, step, delta = monotone_substeps(field_to - field_from, max_field_step)
     if n == 0:
         return 0
     inv_a, ms_over_a, k, alphahat, alpha_c = constants[0], constants[1], constants[2], constants[3], constants[4]
-    # One loop per curve, with the curve a compile-time constant inside it, so the
-    # compiler does not evaluate both curves in every SIMD lane.
+    # One copy of the loop per curve: behind the test of ``kind``, the compiler (LLVM, after
+    # inlining) knows the curve and drops the other one from the SIMD loop. ``kind`` stays a
+    # run-time integer for numba, so the chain below is compiled once, not once per curve
+    # (passing the constants ISING/LANGEVIN would type them as literals: two more chains).
     if kind == ISING:
-        for s in range(n):
-            field = field_from + s * step
-            for b in range(magnetization.shape[0]):  # the SIMD loop
-                lane = LaneConstants(alpha[b], inv_a[b], Ms[b], ms_over_a[b], k[b] * delta, alphahat[b], c[b],
-                                     alpha_c[b])
-                magnetization[b] = _midpoint(field, magnetization[b], step, delta, lane, ISING)
+        _bank_substeps(magnetization, field_from, n, step, delta, alpha, Ms, c, inv_a, ms_over_a, k, alphahat,
+                       alpha_c, kind)
     else:
-        for s in range(n):
-            field = field_from + s * step
-            for b in range(magnetization.shape[0]):
-                lane = LaneConstants(alpha[b], inv_a[b], Ms[b], ms_over_a[b], k[b] * delta, alphahat[b], c[b],
-                                     alpha_c[b])
-                magnetization[b] = _midpoint(field, magnetization[b], step, delta, lane, LANGEVIN)
+        _bank_substeps(magnetization, field_from, n, step, delta, alpha, Ms, c, inv_a, ms_over_a, k, alphahat,
+                       alpha_c, kind)
     return n
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def advance_shared(magnetization, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step):
     """Move every model of a bank from ``field_from`` to ``field_to`` (A/m, shared).
 
@@ -434,13 +451,13 @@ def simulate_shared(field, magnetization0, a, k, alpha, Ms, c, kind, max_field_s
 SMALL_LOOP_EXTENSION = "dM/dH = (6) + chi_r * max(0, 1 - (M/Ms)^2)"
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, forceinline=True, error_model="numpy")
 def _small_loop_slope(field, magnetization, delta, lane, chi_r, kind):
     """dM/dH of the small-loop extension: the slope of (6) plus the fading reversible term."""
     return _slope(field, magnetization, delta, lane, kind) + chi_r * _small_loop_fading(magnetization, lane)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, forceinline=True, error_model="numpy")
 def _small_loop_fading(magnetization, lane):
     """``max(0, 1 - (M/Ms)^2)``: the share of the small-loop term left as the material saturates."""
     ratio = magnetization / lane.Ms
@@ -526,7 +543,7 @@ REVERSAL_PINNING = ("dM/dH = [w*dhat*(Man - M)/(k*delta - alphahat*(Man - M)) + 
                     " + chi_r*max(0, 1 - (M/Ms)^2),  w = 1 - exp(-|H - H_rev|/rayleigh_field)")
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, forceinline=True, error_model="numpy")
 def reversal_weight(field, reversal_field, rayleigh_field):
     """Onset ``w`` of the irreversible term after a reversal at ``reversal_field`` (all A/m);
     1 (model (6)) when ``rayleigh_field`` is 0."""
@@ -535,7 +552,7 @@ def reversal_weight(field, reversal_field, rayleigh_field):
     return 1.0 - math.exp(-abs(field - reversal_field) / rayleigh_field)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, forceinline=True, error_model="numpy")
 def _reversal_slope(field, magnetization, delta, lane, chi_r, weight, kind):
     """dM/dH of :data:`REVERSAL_PINNING`: (6) with its irreversible term weighted by ``weight``,
     plus the small-loop extension's reversible term."""
