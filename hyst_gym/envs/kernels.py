@@ -79,11 +79,12 @@ StepBuffers = namedtuple("StepBuffers", [
 EnvParams = namedtuple("EnvParams", ["tolerance", "plant", "score", "layout"])
 
 
-# plant_step, finish_step and the estimator's estimator_step are inline="always" (numba IR
-# inlining): excitation_step, their one compiled caller, then compiles them as part of itself
-# instead of building each as a library of its own first (about 1 s less on a fresh install's
-# first step; their callees stay ordinary calls, so the inlining is cheap). Python still calls
-# them as usual.
+# plant_step, score_step, clip_actions, finish_step and the estimator's estimator_step,
+# advance_bank and observer_step are inline="always" (numba IR inlining): their one compiled
+# caller (excitation_step, or a kernel it calls) compiles them as part of itself instead of
+# building each as a library of its own first (about 1.5 s less on a fresh install's first
+# step; their callees stay ordinary calls, so the inlining is cheap: see the note on inlining
+# in physics/hysteresis.py). Python still calls them as usual.
 @njit(cache=True, inline="always")
 def plant_step(command, active, plant, params):
     """One control period for every sub-env, in place in ``plant`` (a :class:`PlantState`;
@@ -144,7 +145,7 @@ def plant_step(command, active, plant, params):
             plant.noise_pos[i] = p + 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def score_step(plant, view, buffers, score):
     """Reward ``-|a_estimate - a_true|/width - penalty`` (minus ``remaining steps`` on a
     violation), terminations (constraints) and truncations (time limit), into ``buffers``.
@@ -242,7 +243,7 @@ def fill_info(info, rows, plant, view, value_true, penalty, score):
         info[12, i] = penalty[i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def clip_actions(actions, tolerance, clipped):
     """Copy ``actions`` (n, k) into ``clipped``, clipped to [-1, 1]; returns False (nothing
     written) if a value is not finite or exceeds 1 + ``tolerance`` in magnitude."""

@@ -88,7 +88,7 @@ def _plain(value):
     return tuple(_plain(field) for field in value) if isinstance(value, tuple) else value
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def advance_bank(bank, field_to, params):
     """Move each system's bank (:class:`BankState`) along its own field, in place.
 
@@ -358,7 +358,7 @@ def adaptation_step(theta_hat, dt, gamma, gain, y_eps, phi, lo, hi):
     return min(hi, max(lo, t_new))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def observer_step(grid, values, measured, state, observer, hold):
     """One control step of every system after the bank (``values`` (E, G)) has moved (see
     AdaptiveEstimator.update).
@@ -451,7 +451,8 @@ def refresh(grid, values, measured, state, observer):
         out_phi[e] = phi
 
 
-# inline="always": the env compiles it as part of its excitation_step (see envs/kernels.py)
+# inline="always" here, on advance_bank and on observer_step: the env compiles them as part of
+# its excitation_step (see envs/kernels.py)
 @njit(cache=True, inline="always")
 def estimator_step(field, measured, bank, bank_params, state, observer, hold):
     """One whole control step of every system: bank advance, then :func:`observer_step`.

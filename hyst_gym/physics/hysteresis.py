@@ -254,9 +254,10 @@ class HysteresisBatch:
 # in every copy of anhysteretic_unit -- and cost about half of an environment's first-step
 # compilation (issue 24; docs/speed.md). With LLVM inlining each function is compiled once,
 # and where the call site knows the curve LLVM drops the other one. inline="always" is kept
-# where it is cheap: on the layers (_advance_bank, advance_shared) whose callees are all
-# ordinary calls, so that a caller does not build, optimize and emit them as a library of
-# their own. Their bodies hold no division, so the caller's error model does not matter.
+# where it is cheap: on the layers (_advance_bank, advance_shared, advance_each) whose
+# callees are all ordinary calls, so that a caller does not build, optimize and emit them as
+# a library of their own. Their bodies hold no division, so the caller's error model does
+# not matter. Python calls them as usual.
 
 
 #: The constants of (6) for one model in one direction of travel, formed once per lane so that
@@ -399,7 +400,7 @@ def advance_shared(magnetization, field_from, field_to, a, k, alpha, Ms, c, kind
                          kind, max_field_step)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def advance_each(magnetization, field_from, field_to, a, k, alpha, Ms, c, kind, max_field_step):
     """Move model ``b`` from ``field_from[b]`` to ``field_to[b]`` (A/m), in place.
 
