@@ -152,10 +152,33 @@ def _residual(model: Model, values, weights, mask) -> tuple[float, dict, np.ndar
     return float(np.sqrt(np.mean(residual ** 2))), per_channel, residual
 
 
+def in_threads(function, items, workers: int) -> list:
+    """``[function(item) for item in items]``, run in up to ``workers`` threads, in the items' order.
+
+    Why threads suffice: the fits spend nearly all their time in compiled simulations that release
+    the GIL (kernels.py), and each call here is independent of the others, so the results do not
+    depend on the thread count or the order of completion."""
+    items = list(items)
+    if workers <= 1 or len(items) <= 1:
+        return [function(item) for item in items]
+    with ThreadPoolExecutor(max_workers=min(workers, len(items))) as pool:
+        return list(pool.map(function, items))
+
+
+def _first_best(results):
+    """The result of lowest SSE, the first of equals (as a sequential loop with ``<`` keeps it)."""
+    best = None
+    for result in results:
+        if best is None or result.sse < best.sse:
+            best = result
+    return best
+
+
 def calibrate(recording: Recording, structure: Structure, weights, fit_mask, max_field_step,
-              n_points=128, keep=2, progress=None) -> FitResult:
+              n_points=128, keep=2, progress=None, workers: int = 1) -> FitResult:
     """Stage 1: global Sobol search over the hysteresis parameters (transducer gain and bias
-    solved linearly), then local least squares of everything from the ``keep`` best starts."""
+    solved linearly), then local least squares of everything from the ``keep`` best starts (in
+    up to ``workers`` threads)."""
     model = Model(recording, structure, base_parameters(recording, structure), max_field_step)
     pair = _linear_pair(model)
     names = [n for n in HYSTERESIS_NAMES if model.parameters[n].free]
@@ -165,25 +188,24 @@ def calibrate(recording: Recording, structure: Structure, weights, fit_mask, max
         # base transducer cannot follow does not drag the hysteresis parameters; then fit jointly.
         magnetic_only = Model(recording, structure, model.parameters, max_field_step)
         magnetic_only.channels = ("magnetization",)
-        starts, magnetic_best = [], None
-        for start in global_search(magnetic_only, weights, fit_mask, names, n_points=n_points, keep=keep,
-                                   extra_starts=informed):
-            magnetic = local_fit(magnetic_only, weights, fit_mask, start, max_nfev=60)
-            if magnetic_best is None or magnetic.sse < magnetic_best.sse:
-                magnetic_best = magnetic
+        searched = global_search(magnetic_only, weights, fit_mask, names, n_points=n_points, keep=keep,
+                                 extra_starts=informed)
+        magnetic_fits = in_threads(lambda start: local_fit(magnetic_only, weights, fit_mask, start, max_nfev=60),
+                                   searched, workers)
+        magnetic_best = _first_best(magnetic_fits)
+        starts = []
+        for magnetic in magnetic_fits:
             fitted = magnetic.values
             m = model.magnetization([fitted])[:, 0]
             starts.append(_solve_linear_outputs(model, fitted, m, weights, fit_mask, pair) if pair else fitted)
     else:
         starts = global_search(model, weights, fit_mask, names, n_points=n_points, keep=keep, linear_outputs=pair,
                                extra_starts=informed)
-    best = None
-    for start in starts:
-        result = local_fit(model, weights, fit_mask, start, max_nfev=80, tolerance=BASE_FIT_TOLERANCE)
-        if best is None or result.sse < best.sse:
-            best = result
-        if progress is not None:
-            progress.update(1)
+    results = in_threads(lambda start: local_fit(model, weights, fit_mask, start, max_nfev=80,
+                                                 tolerance=BASE_FIT_TOLERANCE), starts, workers)
+    best = _first_best(results)
+    if progress is not None:
+        progress.update(len(results))
     if "magnetization" in model.channels and "displacement" in model.channels:
         best.magnetic_values = {n: magnetic_best.values[n] for n in HYSTERESIS_NAMES}
     return best
@@ -368,7 +390,7 @@ def _linear_sensor_start(model, effect, start, fit_mask):
     return out
 
 
-def cross_start(candidates, base_heldout, weights, fit_mask, held_mask, limit: int = 5):
+def cross_start(candidates, base_heldout, weights, fit_mask, held_mask, limit: int = 5, workers: int = 1):
     """Refit the runners-up from the best candidate's shared parameters (hysteresis, mechanics, gains).
 
     Why: an extension that the base fit's basin does not suit (a strong M^2 law, say) can end far from
@@ -386,13 +408,18 @@ def cross_start(candidates, base_heldout, weights, fit_mask, held_mask, limit: i
     if best.heldout_rmse > (1.0 - ACCEPT_IMPROVEMENT) * base_heldout:
         return
     shared = {n: v for n, v in best.fit.values.items() if n not in EFFECT_PARAMETERS[best.effect]}
-    for candidate in [c for c in ranked[1:] if c.fit.sse > 1.05 * best.fit.sse][:limit]:
+    # a and the slope mean different things under the two curves: no cross start to or from the other curve
+    chosen = [c for c in [c for c in ranked[1:] if c.fit.sse > 1.05 * best.fit.sse][:limit]
+              if best.effect != "anhysteretic_shape" and c.effect != "anhysteretic_shape"]
+
+    def refitted(candidate):
         model = candidate.fit.model
         start = {**candidate.fit.values, **{n: v for n, v in shared.items() if n in model.parameters}}
-        if best.effect == "anhysteretic_shape" or candidate.effect == "anhysteretic_shape":
-            continue  # a and the slope mean different things under the two curves
         start = _resolve_outputs(model, candidate.effect, start, weights, fit_mask)
-        refit = local_fit(model, weights, fit_mask, start, max_nfev=40)
+        return local_fit(model, weights, fit_mask, start, max_nfev=40)
+
+    for candidate, refit in zip(chosen, in_threads(refitted, chosen, workers)):
+        model = candidate.fit.model
         if refit.sse < candidate.fit.sse:
             candidate.fit = refit
             candidate.heldout_rmse, _, candidate.heldout_residual = _residual(model, refit.values, weights, held_mask)
@@ -581,7 +608,7 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
     bar = tqdm(total=2 + len(candidates_to_try) + 1, desc="diagnose", disable=not progress, leave=False)
 
     bar.set_postfix_str("calibrate")
-    base = calibrate(recording, structure, weights, fit_mask, max_field_step, progress=bar)
+    base = calibrate(recording, structure, weights, fit_mask, max_field_step, progress=bar, workers=workers)
 
     bar.set_postfix_str("locate")
     located = locate_mismatch(base, weights, fit_mask, windows=locate_windows)
@@ -598,7 +625,8 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
         for candidate in pool.map(fitted, candidates_to_try):  # results in the vocabulary's order
             candidates.append(candidate)
             bar.update(1)
-    cross_start(candidates, _rmse(base.model, base.values, weights, held_mask)[0], weights, fit_mask, held_mask)
+    cross_start(candidates, _rmse(base.model, base.values, weights, held_mask)[0], weights, fit_mask, held_mask,
+                workers=workers)
 
     bar.set_postfix_str("decide")
     base, base_heldout = _guard_base(base, candidates, weights, fit_mask, held_mask)
@@ -627,7 +655,8 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
         if share >= CONTINUUM_POWER_SHARE:
             bar.set_postfix_str("continuum")
             decision, continuum = try_continuum(recording, base, released if mechanics_pinned else None, decision,
-                                                base_heldout, weights, fit_mask, held_mask, max_field_step, share)
+                                                base_heldout, weights, fit_mask, held_mask, max_field_step, share,
+                                                workers)
     directions = unidentified_directions(base, weights, fit_mask)
     if directions:
         prior_notes.append("the record does not determine " + "; ".join(
@@ -680,7 +709,7 @@ def resonance_power_share(base: FitResult, weights) -> float:
 
 
 def try_continuum(recording, base, released, decision, base_heldout, weights, fit_mask, held_mask, max_field_step,
-                  share):
+                  share, workers: int = 1):
     """Issue 22, point 4: the base model leaves a residual that lives near or above its first
     resonance and no extension explains it. Try continuum mechanics two ways and say which explains it:
 
@@ -698,14 +727,14 @@ def try_continuum(recording, base, released, decision, base_heldout, weights, fi
     base is a more flexible mechanics, not one effect, and halves many misfits that are not modes.
     Tried on the 14 other-forms recordings that reach this stage, the halving bar alone named 5 more
     continuum rods right and 4 other effects wrong (a Delta-E law, a heating law, two two-phase rods)."""
-    tried = {}
     fem_structure = Structure("fem", base.model.structure.anhysteretic, None, base.model.structure.fit_mechanics,
                               base.model.structure.mechanics_tolerance)
-    fem = calibrate(recording, fem_structure, weights, fit_mask, max_field_step)
-    tried["finite-element rod base"] = fem
+    fits = {"finite-element rod base": lambda: calibrate(recording, fem_structure, weights, fit_mask, max_field_step,
+                                                         workers=workers)}
     if released is not None:
-        tried["lumped base, mechanics released, with a second mode"] = fit_candidate(
+        fits["lumped base, mechanics released, with a second mode"] = lambda: fit_candidate(
             recording, released, "rod_dynamics", weights, fit_mask, max_field_step)
+    tried = dict(zip(fits, in_threads(lambda fit: fit(), fits.values(), workers)))
     results = []
     for label, fit in tried.items():
         heldout, _, residual = _residual(fit.model, fit.values, weights, held_mask)
