@@ -356,9 +356,10 @@ def bank_constants(a, k, alpha, Ms, c):
 
 
 @njit(cache=True, forceinline=True, error_model="numpy")
-def _bank_substeps(magnetization, field_from, n, step, delta, alpha, Ms, c, inv_a, ms_over_a, k, alphahat, alpha_c,
-                   kind):
-    """The ``n`` midpoint substeps of :func:`_advance_bank`: substeps outer, models inner."""
+def _bank_substeps(magnetization, field_from, n, step, delta, alpha, Ms, c, constants, kind):
+    """The ``n`` midpoint substeps of :func:`_advance_bank`: substeps outer, models inner;
+    ``constants`` as :func:`bank_constants` returns them."""
+    inv_a, ms_over_a, k, alphahat, alpha_c = constants[0], constants[1], constants[2], constants[3], constants[4]
     for s in range(n):
         field = field_from + s * step
         for b in range(magnetization.shape[0]):  # the SIMD loop
@@ -372,17 +373,14 @@ def _advance_bank(magnetization, field_from, field_to, alpha, Ms, c, constants, 
     n, step, delta = monotone_substeps(field_to - field_from, max_field_step)
     if n == 0:
         return 0
-    inv_a, ms_over_a, k, alphahat, alpha_c = constants[0], constants[1], constants[2], constants[3], constants[4]
     # One copy of the loop per curve: behind the test of ``kind``, the compiler (LLVM, after
     # inlining) knows the curve and drops the other one from the SIMD loop. ``kind`` stays a
     # run-time integer for numba, so the chain below is compiled once, not once per curve
     # (passing the constants ISING/LANGEVIN would type them as literals: two more chains).
     if kind == ISING:
-        _bank_substeps(magnetization, field_from, n, step, delta, alpha, Ms, c, inv_a, ms_over_a, k, alphahat,
-                       alpha_c, kind)
+        _bank_substeps(magnetization, field_from, n, step, delta, alpha, Ms, c, constants, kind)
     else:
-        _bank_substeps(magnetization, field_from, n, step, delta, alpha, Ms, c, inv_a, ms_over_a, k, alphahat,
-                       alpha_c, kind)
+        _bank_substeps(magnetization, field_from, n, step, delta, alpha, Ms, c, constants, kind)
     return n
 
 
