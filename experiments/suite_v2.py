@@ -45,6 +45,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import os
 import pathlib
 import sys
 import time
@@ -601,6 +602,11 @@ def markdown(data: dict) -> str:
         cells = [_cell(tasks[t]["agents"][name], tasks[t]["statistic"]) if name in tasks[t]["agents"] else "—"
                  for t in order]
         lines.append(f"| {name} ({kind}) | " + " | ".join(cells) + " |")
+    speed = data.get("speed_remeasured")
+    if speed:
+        lines += ["", f"Env speed (steps/s, single and n = 1024) re-measured by `{speed['command']}` on "
+                  f"{speed['date']}, 1-min load {speed['load_average']:.1f} (the suite run measured it at its own "
+                  "load, beside training)."]
     tier = data.get("sanity_tier", [])
     if tier:
         lines += ["", "Sanity tier (suite v1, `experiments/results/suite_v1.json`, full profile): "
@@ -712,6 +718,9 @@ def configure_parser(parser) -> None:
                         "(24 draws, RL at small budgets, 3 seeds); writes suite_v2_reduced.*")
     parser.add_argument("--no-docs", action="store_true", help="v2 only: do not rewrite the suite-v2 section of "
                         "docs/results/suite.md (the full and reduced profiles write it)")
+    parser.add_argument("--speed-only", action="store_true", help="v2 only: train and evaluate nothing; re-measure "
+                        "the env speed of the tasks in the profile's stored JSON and rewrite its JSON, table and page "
+                        "section (the speed measured beside training is low)")
 
 
 def _options(args):
@@ -737,8 +746,9 @@ def main(args) -> int:
               file=sys.stderr)
         return 2
     if args.suite == "v1":
-        if args.reduced or args.no_docs:
-            print("hyst-gym benchmark: error: --reduced and --no-docs are options of --suite v2", file=sys.stderr)
+        if args.reduced or args.no_docs or getattr(args, "speed_only", False):
+            print("hyst-gym benchmark: error: --reduced, --no-docs and --speed-only are options of --suite v2",
+                  file=sys.stderr)
             return 2
         from experiments.suite_v1 import main as v1_main
 
@@ -748,8 +758,34 @@ def main(args) -> int:
     except UsageError as error:
         print(f"hyst-gym benchmark: error: {error}", file=sys.stderr)
         return 2
+    if getattr(args, "speed_only", False):
+        stem = "suite_v2" if profile.name == "full" else f"suite_v2_{profile.name}"
+        path = out / f"{stem}.json"
+        if not path.is_file():
+            print(f"hyst-gym benchmark: error: --speed-only: no stored {path} (run the profile first)", file=sys.stderr)
+            return 2
+        remeasure_speed(path, figure_path, docs, "hyst-gym benchmark --suite v2 --speed-only"
+                        + {"full": "", "quick": " --quick", "reduced": " --reduced"}[profile.name])
+        return 0
     run_suite(profile, task_ids, out, figure_path, docs=docs)
     return 0
+
+
+def remeasure_speed(path: pathlib.Path, figure_path: pathlib.Path, docs, command: str) -> dict:
+    """Re-measure :func:`env_speed` of every task in a stored suite JSON and rewrite the JSON, its table and
+    (``docs``) the page section; everything else in the JSON is kept as measured."""
+    data = json.loads(path.read_text())
+    for task_id, task in data["tasks"].items():
+        task["steps_per_s"] = env_speed(task_id)
+        print(f"[suite v2] {task_id}: {task['steps_per_s']['single']:,.0f} steps/s single, "
+              f"{task['steps_per_s']['1024']:,.0f} at n = 1024", flush=True)
+    data["speed_remeasured"] = {"command": command, "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+                                "load_average": os.getloadavg()[0], "cores": os.cpu_count()}
+    path.write_text(json.dumps(data, indent=1))
+    path.with_suffix(".md").write_text(markdown(data))
+    if docs is not None:
+        write_docs(data, figure_path, docs)
+    return data
 
 
 if __name__ == "__main__":

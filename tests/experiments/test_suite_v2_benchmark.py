@@ -79,3 +79,28 @@ def test_bad_arguments_give_one_line_and_status_2(argv, message, capsys):
     assert suite_v2.main(parser.parse_args(argv)) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and "\n" not in err
+
+
+def test_speed_only_rewrites_the_speed_and_keeps_the_rest(tmp_path):
+    """--speed-only re-measures steps/s of the tasks in a stored suite JSON: the speed changes to a fresh
+    measurement (positive, single below n = 1024's aggregate), every other field is kept, and the table
+    says where the speed came from."""
+    import json
+
+    from experiments.suite_v2 import ROOT, remeasure_speed
+
+    stored = json.loads((ROOT / "experiments" / "results" / "suite_v2_reduced.json").read_text())
+    task_id = "hyst_gym/HotCalibrate-v0"
+    stored["tasks"] = {task_id: stored["tasks"][task_id]}
+    path = tmp_path / "suite_v2_reduced.json"
+    path.write_text(json.dumps(stored))
+    data = remeasure_speed(path, tmp_path / "fig.png", None, "hyst-gym benchmark --suite v2 --reduced --speed-only")
+    again = json.loads(path.read_text())
+    speed = again["tasks"][task_id]["steps_per_s"]
+    assert 0 < speed["single"] < speed["1024"]
+    kept = [key for key in stored["tasks"][task_id] if key != "steps_per_s"]
+    assert "agents" in kept
+    for key in kept:
+        assert again["tasks"][task_id][key] == stored["tasks"][task_id][key]
+    assert again["speed_remeasured"]["command"].endswith("--speed-only") and data == again
+    assert "re-measured by `hyst-gym benchmark --suite v2 --reduced --speed-only`" in path.with_suffix(".md").read_text()
