@@ -70,3 +70,17 @@ def test_before_after_pairs_the_same_recordings():
     assert "| mains_pickup | 2 | 1 → 2 | 1 → 2 | 0 → 0 | 1 |" in lines
     assert "| saturating_amplifier | 1 | 0 → 0 | 0 → 1 | 1 → 0 | 1 |" in lines
     assert lines[-1] == "| all | 3 | 1 → 2 | 1 → 3 | 1 → 0 | 2 |"
+
+
+def test_tally_reports_the_reduction_of_right_names_only():
+    """The per-group held-out reduction counts named verdicts that are right, not `none` or wrong names."""
+    from experiments.diagnose_other_forms import tally
+
+    rows = [{"outcome": "right", "verdict": "mains_pickup", "improvement": 0.8},
+            {"outcome": "right", "verdict": "mains_pickup", "improvement": 0.6},
+            {"outcome": "right", "verdict": "mains_pickup", "improvement": 0.9},
+            {"outcome": "right", "verdict": "none", "improvement": 0.05},
+            {"outcome": "wrong_name", "verdict": "sensor_map", "improvement": 0.99}]
+    t = tally(rows)
+    assert t["median_reduction_when_named_right"] == 0.8 and t["min_reduction_when_named_right"] == 0.6
+    assert t["right"] == 4 and t["wrong_name"] == 1
