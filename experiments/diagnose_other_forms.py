@@ -127,7 +127,8 @@ def _pct(x):
 
 def _table(title, groups):
     lines = [f"## {title}", "", "| group | n | right | right or ambiguous with truth | wrong name | missed | other "
-             "| held-out reduction when named right: median (min) | verdicts |", "|---|---|---|---|---|---|---|---|---|"]
+             "| held-out reduction when named right: median (min) | verdicts |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for key, t in groups.items():
         verdicts = ", ".join(f"{v} {c}" for v, c in t["verdicts"].items())
         median, least = t.get("median_reduction_when_named_right"), t.get("min_reduction_when_named_right")
@@ -225,8 +226,8 @@ def before_after(before_rows, after_rows) -> list[str]:
     for case in sorted({a["case"] for _, a in pairs}) + ["all"]:
         group = [(b, a) for b, a in pairs if case in ("all", a["case"])]
         # both scored by today's yardstick (outcome() reads the case's right verdicts now)
-        scored = [(outcome(b["case"], b["verdict"], b.get("tied") or []), outcome(a["case"], a["verdict"], a.get("tied") or []))
-                  for b, a in group]
+        scored = [(outcome(b["case"], b["verdict"], b.get("tied") or []),
+                   outcome(a["case"], a["verdict"], a.get("tied") or [])) for b, a in group]
         count = lambda which, names: sum(s[which] in names for s in scored)  # noqa: E731
         lines.append(f"| {case} | {len(group)} | {count(0, ('right',))} → {count(1, ('right',))} | "
                      f"{count(0, ('right', 'ambiguous_with_truth'))} → {count(1, ('right', 'ambiguous_with_truth'))} | "

@@ -301,7 +301,8 @@ RESCUE_RMSE = 3.0
 RESCUED_EFFECTS = {"field_bias": ("H0",), "quadratic_magnetostriction": (),
                    "delta_e": ("delta_e", "delta_e_linear"),
                    "eddy_current": ("k_e",), "thermal_drift": ("heating",), "rod_dynamics": ("f2",),
-                   "sensor_lag": (), "input_map": ("input_saturation", "input_saturation_negative", "input_cubic"), "sensor_map": ()}
+                   "sensor_lag": (), "input_map": ("input_saturation", "input_saturation_negative", "input_cubic"),
+                   "sensor_map": ()}
 
 
 def _rescue(model, effect, local, weights, fit_mask):
@@ -634,7 +635,8 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
         if candidate.accepted:
             candidate.plausibility = check_plausibility(candidate, weights)
     pinned = _pinned_priors(base)
-    release, released = release_prior(base, pinned, weights, fit_mask, held_mask, base_heldout) if pinned else ({}, None)
+    release, released = ({}, None) if not pinned else release_prior(base, pinned, weights, fit_mask, held_mask,
+                                                                     base_heldout)
     mechanics_pinned = bool(release.get("binds"))
     prior_notes = _prior_notes(base, release)
     if mechanics_pinned:

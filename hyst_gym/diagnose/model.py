@@ -521,7 +521,8 @@ def extension_parameters(recording: Recording, structure: Structure, base_values
         # gain at the peak field down to 1/sqrt(1 + 30) = 0.18 of the small-signal gain
         out["input_saturation_negative"] = Parameter("input_saturation_negative", 0.0, 0.0, 30.0,
                                                      "1 (per unit (H/max|H|)^2, where H < 0)", scale=0.5)
-        out["input_saturation"] = Parameter("input_saturation", 0.0, 0.0, 30.0, "1 (per unit (H/max|H|)^2, where H >= 0)",
+        out["input_saturation"] = Parameter("input_saturation", 0.0, 0.0, 30.0,
+                                            "1 (per unit (H/max|H|)^2, where H >= 0)",
                                             scale=0.5)
     elif effect in ("sensor_drift", "mains_pickup"):
         if effect == "mains_pickup":

@@ -9,8 +9,8 @@ import numpy as np
 
 from ..physics.constants import ROOM_TEMPERATURE
 from .fit import FitResult
-from .model import (EFFECT_PARAMETERS, FEM_ROD_NAMES, SENSOR_MAP_NAMES, channel_range, mapped_field, relative_stiffness_change,
-                    slope_factor)
+from .model import (EFFECT_PARAMETERS, FEM_ROD_NAMES, SENSOR_MAP_NAMES, channel_range, mapped_field,
+                    relative_stiffness_change, slope_factor)
 
 EFFECT_WORDS = {
     "thermal_drift": "thermal drift: the material heats up during the record and its anhysteretic parameter a "
