@@ -30,6 +30,19 @@ def test_continuum_rod_is_explained_by_the_finite_element_base():
     assert "continuum" in report.to_json()
 
 
+def test_a_continuum_model_that_halves_the_error_leaves_unexplained_at_no_confidence():
+    """A rod with constant modal damping (not the FEM base's Kelvin-Voigt form): the FEM base halves the
+    held-out error but leaves several noise units, so the verdict stays `unexplained`, and its confidence is
+    0: a continuum model explains most of the mismatch, so `unexplained` has no margin over naming it."""
+    recording, truth = other_forms.generate("continuum_rod", 1, "displacement")
+    assert truth["form"] == "modal_constant_damping"
+    report = diagnose(recording, progress=False)
+    fem = report.continuum["tried"]["finite-element rod base"]
+    assert report.verdict == "unexplained" and not report.continuum["named"]
+    assert fem["improvement"] >= 0.5 and fem["heldout_rmse"] > 2.0
+    assert report.confidence == 0.0
+
+
 def test_mains_pickup_at_60_hz_is_fitted_at_60_hz():
     """60 Hz pickup with a third harmonic on the magnetization channel (5.6 cycles in the record): the
     tool fits 50 and 60 Hz and keeps 60; the held-out error falls to within noise."""
