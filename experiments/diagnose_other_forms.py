@@ -139,6 +139,24 @@ def _table(title, groups):
     return lines + [""]
 
 
+#: Confidence bins of the reliability table (the issue: >= 90 % of verdicts at confidence >= 0.8 exactly right).
+CONFIDENCE_BINS = ((0.0, 0.2), (0.2, 0.5), (0.5, 0.8), (0.8, 0.9), (0.9, 1.0))
+
+
+def reliability(rows) -> list[str]:
+    """Markdown lines: per confidence bin, how many verdicts and how many exactly right."""
+    lines = ["## Reliability of `confidence`", "", "| confidence | n | exactly right |", "|---|---|---|"]
+    scored = [r for r in rows if r["confidence"] is not None and r["confidence"] == r["confidence"]]
+
+    def row(label, lo, hi):
+        group = [r for r in scored if lo <= r["confidence"] < hi or (hi == 1.0 and r["confidence"] == 1.0)]
+        right = sum(r["outcome"] == "right" for r in group)
+        return f"| {label} | {len(group)} | {right} ({_pct(right / len(group)) if group else '–'}) |"
+
+    lines += [row(f"{lo:.1f}-{hi:.1f}", lo, hi) for lo, hi in CONFIDENCE_BINS]
+    return lines + [row("**0.8-1.0 (all)**", 0.8, 1.0), ""]
+
+
 def markdown(summary, rows, command, skipped) -> str:
     right_sets = ", ".join(f"`{c}`: {{{', '.join(sorted(s.expected))}}}" for c, s in other_forms.CASES.items())
     lines = ["# Mismatch tool on physics in other forms", "",
@@ -154,6 +172,7 @@ def markdown(summary, rows, command, skipped) -> str:
     lines += _table("Per case", summary["per_case"])
     lines += _table("Per case and channel set", summary["per_case_and_channel_set"])
     lines += _table("Per case and form", summary["per_case_and_form"])
+    lines += reliability(rows)
     lines += ["## Recordings", "", "| case | channels | seed | form | verdict | tied | confidence | outcome | "
               "visibility (noise sd) | s |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:

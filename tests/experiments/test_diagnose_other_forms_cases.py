@@ -97,3 +97,14 @@ def test_tally_reports_the_reduction_of_right_names_only():
     t = tally(rows)
     assert t["median_reduction_when_named_right"] == 0.8 and t["min_reduction_when_named_right"] == 0.6
     assert t["right"] == 4 and t["wrong_name"] == 1
+
+
+def test_reliability_table_bins_confidences():
+    """Each verdict counts in exactly one bin (confidence 1.0 in the last); the summary row covers 0.8-1.0."""
+    from experiments.diagnose_other_forms import reliability
+
+    rows = [{"confidence": c, "outcome": o} for c, o in
+            ((0.1, "other"), (0.85, "right"), (1.0, "right"), (0.95, "wrong_name"), (None, "other"))]
+    lines = reliability(rows)
+    assert "| 0.0-0.2 | 1 | 0 (0 %) |" in lines and "| 0.8-0.9 | 1 | 1 (100 %) |" in lines
+    assert "| 0.9-1.0 | 2 | 1 (50 %) |" in lines and "| **0.8-1.0 (all)** | 3 | 2 (67 %) |" in lines
