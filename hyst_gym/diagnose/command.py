@@ -18,7 +18,7 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
                         help="base anhysteretic curve (default ising, eq. 2)")
     parser.add_argument("--fix-mechanics", action="store_true",
                         help="fix the mechanics at the paper's values instead of fitting them "
-                             "(lumped: chat, khat; fem: Y, ML, cD)")
+                             "(lumped: chat, khat; fem: Y, ML, cD, cL)")
     parser.add_argument("--holdout", type=float, default=0.3, help="fraction held out at the end (default 0.3)")
     parser.add_argument("--json", type=Path, help="write the machine-readable report here")
     parser.add_argument("--plots", type=Path, help="write PNG plots into this folder")

@@ -715,8 +715,8 @@ def try_continuum(recording, base, released, decision, base_heldout, weights, fi
     """Issue 22, point 4: the base model leaves a residual that lives near or above its first
     resonance and no extension explains it. Try continuum mechanics two ways and say which explains it:
 
-    * the finite-element rod base (``--model fem``: Young's modulus, tip mass and damping fitted, all
-      its modes), calibrated from scratch;
+    * the finite-element rod base (``--model fem``: Young's modulus, tip mass, distributed and tip damping
+      fitted, all its modes), calibrated from scratch;
     * extra modes: the lumped base with a second mode of free frequency (``rod_dynamics``), fitted on
       the base whose mechanics were released from their prior (:func:`release_prior`) when that bound.
 

@@ -133,7 +133,7 @@ DIRECTION_COMPONENT = 0.3
 
 def measurement_for(names, values) -> str:
     """The measurement that would identify a direction made of ``names`` (fitted values ``values``)."""
-    mechanical = {"khat", "chat", "lam", "Y", "ML", "cD", "f2", "damping2"}
+    mechanical = {"khat", "chat", "lam", "Y", "ML", "cD", "cL", "f2", "damping2"}
     if mechanical & set(names):
         if "khat" in values:
             f1 = float(np.sqrt(values["khat"]) / (2 * np.pi))

@@ -142,7 +142,7 @@ MECHANICS_TOLERANCE = 1.5
 #: Elements of the ``fem`` base model's rod: its first two modes within ~1 % of a fine mesh.
 FEM_ELEMENTS = 8
 #: Rod data the ``fem`` base model fits (the others stay at RodParams()).
-FEM_ROD_NAMES = ("Y", "ML", "cD")
+FEM_ROD_NAMES = ("Y", "ML", "cD", "cL")
 
 
 @dataclass(frozen=True)
@@ -448,6 +448,9 @@ def base_parameters(recording: Recording, structure: Structure) -> dict:
             params["Y"] = Parameter("Y", rod.Y, rod.Y / 3, rod.Y * 3, "Pa", log=True, free=not fix)
             params["ML"] = Parameter("ML", rod.ML, 1e-3, 20.0, "kg", log=True, free=not fix)
             params["cD"] = Parameter("cD", rod.cD, 1e3, 1e8, "Pa s", log=True, free=not fix)
+            # the tip damper too: with a heavy tip mass it sets the first mode's damping, which the
+            # distributed (Kelvin-Voigt) damping cD can only reach by over-damping the higher modes
+            params["cL"] = Parameter("cL", rod.cL, 1.0, 1e6, "N s/m", log=True, free=not fix)
             zeta = rod.lumped_stiffness * x_span / m_scale
             params["zeta_fem"] = Parameter("zeta_fem", zeta, -1e4 * zeta, 1e4 * zeta, "N per A/m", scale=zeta)
         elif transducer == "first_order":

@@ -36,7 +36,7 @@ EFFECT_WORDS = {
 UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "heating_exponent": "", "tau_th": "s", "beta_Ms": "1/K",
          "tau_m": "s", "tau_x": "s", "zeta_q": "m/s^2 per (A/m)^2", "f2": "Hz", "damping2": "", "g2": "",
          "delta_e": "", "delta_e_linear": "", "chi_r": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "", "alpha": "",
-         "Y": "Pa", "ML": "kg", "cD": "Pa s", "khat": "1/s^2", "chat": "1/s"}
+         "Y": "Pa", "ML": "kg", "cD": "Pa s", "cL": "N s/m", "khat": "1/s^2", "chat": "1/s"}
 
 
 def physical_params(fit: FitResult) -> dict:
