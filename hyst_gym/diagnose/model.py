@@ -48,8 +48,9 @@ the base model when those parameters vanish:
                                 has a static nonlinearity, ``y_rec = y + s*(q2*v^2 + q3*v^3)`` with
                                 v = (y - centre)/s over the recorded channel's range (half-span s)
 ``sensor_drift``                ``drift_linear_<ch>``, ``drift_quadratic_<ch>``: a slow additive drift
-                                of each sensor's offset, ``s*(d1*P1(tau) + d2*P2(tau))`` with P the
-                                Legendre polynomials of the record's time mapped to [-1, 1]
+                                of each sensor's offset since the record's start (the sensor zeroed
+                                there), ``s*(d1*f + d2*f^2)`` with f the record's time mapped to
+                                [0, 1]
 ``mains_pickup``                ``mains_cos_<ch>``, ``mains_sin_<ch>``, ``mains3_cos_<ch>``,
                                 ``mains3_sin_<ch>`` at ``mains_hz`` (50 or 60 Hz, chosen from the
                                 base model's residual): additive pickup of the mains and its third
@@ -294,7 +295,8 @@ class Model:
         v = (signal - centre) / half_span
         out = signal + half_span * (quadratic * v ** 2 + cubic * v ** 3)
         if any(drift):
-            out = out + half_span * (drift[0] * self._legendre[1] + drift[1] * self._legendre[2])
+            fraction = self._record_fraction
+            out = out + half_span * (drift[0] * fraction + drift[1] * fraction ** 2)
         if any(mains):
             phase = 2 * np.pi * values["mains_hz"] * self.recording.time
             out = out + half_span * (mains[0] * np.cos(phase) + mains[1] * np.sin(phase)
@@ -302,11 +304,10 @@ class Model:
         return out
 
     @property
-    def _legendre(self):
-        """Legendre polynomials P0..P2 of the record's time mapped to [-1, 1]."""
+    def _record_fraction(self):
+        """The record's time mapped to [0, 1]: the sensor drift's variable, 0 where the record starts."""
         time = self.recording.time
-        tau = 2.0 * (time - time[0]) / (float(time[-1] - time[0]) or 1.0) - 1.0
-        return np.ones_like(tau), tau, 0.5 * (3.0 * tau ** 2 - 1.0)
+        return (time - time[0]) / (float(time[-1] - time[0]) or 1.0)
 
     def displacement(self, values, magnetization) -> np.ndarray:
         transducer = self.structure.transducer

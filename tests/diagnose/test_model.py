@@ -225,9 +225,9 @@ def test_static_maps_must_be_monotone_to_be_plausible():
 
 
 def test_additive_sensor_terms_are_what_they_say():
-    """sensor_drift adds Legendre P1, P2 of the time in units of the channel's half-span, mains_pickup a
-    50/60 Hz sinusoid and its third harmonic (the FFT peaks at the stated frequencies); both vanish at
-    zero coefficients."""
+    """sensor_drift adds f and f^2 (f: the time mapped to [0, 1], 0 at the start) in units of the channel's
+    half-span, mains_pickup a 50/60 Hz sinusoid and its third harmonic (the FFT peaks at the stated
+    frequencies); both vanish at zero coefficients."""
     from hyst_gym.diagnose.core import mains_starts
     from hyst_gym.diagnose.model import channel_range
 
@@ -240,10 +240,12 @@ def test_additive_sensor_terms_are_what_they_say():
     plain = model.predict(values)
     drifted = model.predict(dict(values, drift_linear_x=0.1, drift_quadratic_x=-0.05))
     time = recording.time
-    tau = 2 * (time - time[0]) / (time[-1] - time[0]) - 1
+    fraction = (time - time[0]) / (time[-1] - time[0])
     half = channel_range(recording.displacement)[1]
     np.testing.assert_allclose(drifted["displacement"] - plain["displacement"],
-                               half * (0.1 * tau - 0.05 * 0.5 * (3 * tau ** 2 - 1)), rtol=1e-9, atol=1e-15)
+                               half * (0.1 * fraction - 0.05 * fraction ** 2), rtol=1e-9, atol=1e-15)
+    # a drift of the offset since the start: the first sample is the sensor's zero
+    assert drifted["displacement"][0] == plain["displacement"][0]
     np.testing.assert_array_equal(drifted["magnetization"], plain["magnetization"])
 
     structure = Structure("lumped", "ising", "mains_pickup")
