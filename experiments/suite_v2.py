@@ -1,12 +1,13 @@
 """Benchmark suite v2 (issue 23): tasks with their own stories, floors that are bounds where derivable.
 
-    hyst-gym benchmark --suite v2 [--quick | --reduced] [--tasks ID,ID] [--out DIR] [--no-docs]
+    hyst-gym benchmark --suite v2 [--quick | --reduced] [--tasks ID,ID] [--merge] [--out DIR] [--no-docs]
     python -m experiments.suite_v2 --suite v2 [same options]
     hyst-gym benchmark [--suite v1] ...      # suite v1 (the sanity tier), unchanged: experiments.suite_v1
 
-Tasks (:mod:`hyst_gym.envs.suite_v2`): three calibration tasks (the agent drives the coil and reports
-a every step; floor: a Van Trees **bound**, :mod:`hyst_gym.estimation.information_bound`) and a
-drift-jump task (the built-in min-max estimator identifies a, which jumps at an unknown time;
+Tasks (:mod:`hyst_gym.envs.suite_v2`): four calibration tasks (the agent drives the coil and reports
+a every step; floor: a Van Trees **bound**, :mod:`hyst_gym.estimation.information_bound`; in
+``HotCalibrateUnknownK-v0`` the pinning constant k is unknown too and the bound is the k-known one,
+which ignores the k uncertainty) and a drift-jump task (the built-in min-max estimator identifies a, which jumps at an unknown time;
 floor: an **oracle**, as in v1). All agents play the task's native vector env on the same draws
 (tuning :data:`~baselines.scenarios.TUNING_SEEDS`, held-out :data:`~baselines.scenarios.HELDOUT_SEEDS`).
 
@@ -20,13 +21,16 @@ Metrics (lower is better; width(Theta) counted per step after an overheat, as th
 
 Agents (kind): ``open_loop``: the paper's ramp, ``tuned_open_loop`` (best of v1's design family
 without feedback on the tuning draws), ``optimal_design_prior`` (the Fisher multisine over the
-task's a prior), ``direct_design`` (CMA-ES over a 9-knot field on the task metric);
+task's a prior), ``direct_design`` (CMA-ES over a 9-knot field on the task metric), on the k task
+also ``direct_design_k_known`` (the same search on the k-known sibling task, played here);
 ``feedback``: ``thermostat``, ``proportional`` (the thermal budget read from the estimate), and on
 the jump task ``identify_then_idle`` (excite while the estimator's tuning error says it is not
 tuned); ``estimator`` (jump task, context): the gradient and multiple-model estimators under the
 tuned input; ``rl``: PPO, SAC, RecurrentPPO (:mod:`baselines.train`, dense env reward). In the
 calibration tasks every non-RL agent reports the grid-posterior (Bayes) estimate of
-:class:`baselines.calibration_agents.PosteriorCalibration`; RL reports its own.
+:class:`baselines.calibration_agents.PosteriorCalibration` (on the k task a (T0, k) grid that
+marginalizes k; ``direct_design_nominal_k``, kind ``estimator``, context: the direct design with a
+posterior that assumes the nominal k); RL reports its own.
 
 Headroom: ``reference/floor - 1`` (reference: the best ``open_loop`` agent), 95 % bootstrap CI over
 the draws; a task enters the suite when the CI lies above 25 %. Normalized score:
@@ -37,7 +41,9 @@ Profiles: ``quick`` (<= 10 min: 16 held-out draws, small searches, the committed
 training), ``reduced`` (this session's measurement: 24 held-out draws, RL trained at small budgets,
 3 seeds), ``full`` (50 draws, 10 seeds; not run yet). Writes ``experiments/results/suite_v2[_PROFILE].json``
 and ``.md``, ``docs/figures/suite_v2[_PROFILE].png`` and (full and reduced profiles) the ``suite-v2``
-section of ``docs/results/suite.md``.
+section of ``docs/results/suite.md``. ``--merge`` keeps the other tasks of the profile's stored JSON
+(measured by earlier runs at the same settings) and replaces or adds only the tasks of this run; the
+JSON's ``runs`` lists which run measured which tasks.
 """
 
 from __future__ import annotations
@@ -114,6 +120,17 @@ def task_spec(task_id: str) -> dict:
     return TASKS_V2[task_id]
 
 
+def k_known_sibling(task_id: str):
+    """The task with the same plant, limits and sensors but k known, for a task with a k prior (else None)."""
+    from hyst_gym.envs.suite_v2 import TASKS_V2
+
+    spec = TASKS_V2[task_id]
+    if spec["k_prior"] is None:
+        return None
+    return next(other for other, s in TASKS_V2.items() if s["k_prior"] is None and s["kind"] == spec["kind"]
+                and s["config"] == spec["config"] and s["sensors"] == spec["sensors"])
+
+
 def task_config(task_id: str):
     from hyst_gym.envs.suite_v2 import task_config_v2
 
@@ -169,6 +186,8 @@ def play(agent, task_id: str, seeds, options=None, overrides=None):
         draws = {"temperature": inner.sim.temperature.copy(), "drift_rate": inner.sim.drift_rate.copy()}
         if hasattr(inner, "jump_step"):
             draws.update(jump_step=inner.jump_step.copy(), jump_change=inner.jump_change.copy())
+        if getattr(inner, "k_prior", None) is not None:
+            draws["k"] = inner.k_true
         alive = np.ones(n, dtype=bool)
         start = np.ones(n, dtype=bool)
         for step in range(config.episode_steps):
@@ -323,10 +342,32 @@ def searched_designs(task_id: str, profile: Profile, heldout):
 
     direct = search_direct_design(score, limits, config.episode_duration, n_knots=9,
                                   max_evaluations=profile.cma_evaluations).schedule
+    schedules = [("ramp", Ramp()), ("optimal_design_prior", fisher), ("direct_design", direct)]
+    sibling = k_known_sibling(task_id)
+    if sibling is not None:
+        # k does not enter the coil's heating, so a design searched with k known is just as admissible
+        # here; measured in the reduced run, the task's own search (tuned on a few draws with k unknown)
+        # overheated on a held-out draw while the k-known design did not, so the reference (the best
+        # input without feedback) must consider both
+        def sibling_score(schedule):
+            return statistic_of(sibling)[1](play(design_agent([Design("direct_design", schedule)], sibling),
+                                                sibling, tuning)[0][None, :])
+
+        schedules.append(("direct_design_k_known", search_direct_design(
+            sibling_score, limits, config.episode_duration, n_knots=9,
+            max_evaluations=profile.cma_evaluations).schedule))
     agents = {}
-    for name, schedule in (("ramp", Ramp()), ("optimal_design_prior", fisher), ("direct_design", direct)):
+    for name, schedule in schedules:
         agents[name] = ("open_loop", play(design_agent([Design(name, schedule)], task_id), task_id, heldout)[0])
+    if task_spec(task_id)["k_prior"] is not None:  # context: the same input, a posterior that assumes nominal k
+        from baselines.calibration_agents import POSTERIOR_NODES, PosteriorCalibration
+
+        nominal = PosteriorCalibration(field_agent([Design("direct_design", direct)], task_id), task_id,
+                                       name="direct_design_nominal_k", k_nodes=1, nodes=POSTERIOR_NODES)
+        agents["direct_design_nominal_k"] = ("estimator", play(nominal, task_id, heldout)[0])
     designs = {"optimal_design_prior": list(fisher.coefficients), "direct_design_knots": list(direct.knots)}
+    if sibling is not None:
+        designs["direct_design_k_known_knots"] = list(schedules[-1][1].knots)
     return agents, designs
 
 
@@ -486,7 +527,7 @@ def summarize_task(task_id: str, evaluated: dict, profile: Profile) -> dict:
         agents[name]["normalized"] = {"value": value, "ci": ci}
     in_suite, reason = _in_suite(headroom[1])
     spec = task_spec(task_id)
-    return {"description": spec["description"], "difficulty": spec["difficulty"], "family": spec["kind"],
+    return {"description": spec["description"], "difficulty": spec["difficulty"], "family": spec["family"],
             "statistic": stat_name, "metric": METRICS[spec["kind"]], "lower_is_better": True,
             "floor": floor, "reference": reference,
             "headroom": {"value": headroom[0], "ci": headroom[1], "target": HEADROOM_TARGET},
@@ -558,7 +599,9 @@ def sanity_tier(results: pathlib.Path = RESULTS) -> list:
 
 # ---------------------------------------------------------------------------- report
 
-AGENT_ORDER = ("ramp", "tuned_open_loop", "optimal_design_prior", "direct_design", "gradient", "multiple_model",
+AGENT_ORDER = ("ramp", "tuned_open_loop", "optimal_design_prior", "direct_design", "direct_design_k_known",
+               "direct_design_nominal_k",
+               "gradient", "multiple_model",
                "thermostat", "proportional", "identify_then_idle", "ppo", "ppo_x3", "sac", "recurrent_ppo")
 
 
@@ -584,10 +627,18 @@ def _task_rows(tasks: dict) -> list:
     return lines
 
 
+def _wall(data: dict) -> str:
+    runs = data.get("runs", [])
+    if len(runs) < 2:
+        return f"wall time {data['wall_s'] / 60:.1f} min"
+    return f"wall time {data['wall_s'] / 60:.1f} min in {len(runs)} runs merged with `--merge` (" + "; ".join(
+        f"{', '.join(t.split('/')[-1] for t in run['tasks'])}: {run['wall_s'] / 60:.1f} min" for run in runs) + ")"
+
+
 def markdown(data: dict) -> str:
     tasks = data["tasks"]
     lines = [f"Profile `{data['profile']}` ({data['profile_note']}): {data['heldout_draws']} held-out draws per agent; "
-             f"RL {data['rl_budget']}; wall time {data['wall_s'] / 60:.1f} min; hyst-gym {data['package_version']}.",
+             f"RL {data['rl_budget']}; {_wall(data)}; hyst-gym {data['package_version']}.",
              "Calibration tasks: RMS error over steps 101..200 and the draws (A/m), floor a Van Trees bound; jump "
              "task: IQM of the per-draw mean |error| (A/m), floor an oracle. [95 % bootstrap CI]; lower is better.",
              ""] + _task_rows(tasks)
@@ -660,12 +711,61 @@ PROFILE_NOTES = {"full": "the suite's own decision", "quick": "a smoke run on fe
                  "draws, 3 RL seeds at small budgets"}
 
 
-def run_suite(profile: Profile, task_ids, out: pathlib.Path, figure_path: pathlib.Path, raw: pathlib.Path = RAW,
-              docs: pathlib.Path | None = None, log=print) -> dict:
-    import hyst_gym
+def run_record(profile: Profile) -> dict:
+    """The settings and seeds a profile's JSON records (what a merge must share)."""
     from baselines.scenarios import HELDOUT_SEEDS, TUNING_SEEDS
 
+    return {"settings": asdict(profile),
+            "seeds": {"tuning": list(TUNING_SEEDS[:profile.tuning]), "heldout": list(HELDOUT_SEEDS[:profile.heldout]),
+                      "rl_training": list(range(profile.rl_seeds))}}
+
+
+def check_mergeable(stored: dict, record: dict, path: pathlib.Path) -> None:
+    """A ValueError (starting ``merge:``) when the stored JSON's settings or seeds differ from ``record``'s."""
+    for key in ("settings", "seeds"):
+        if stored.get(key) != json.loads(json.dumps(record[key])):
+            raise ValueError(f"merge: {path} was measured with other {key}; rerun all its tasks instead")
+
+
+def merge_stored(data: dict, path: pathlib.Path) -> dict:
+    """``data`` (one run's JSON) merged into the stored JSON at ``path`` of the same profile: the stored tasks
+    that this run did not measure are kept as measured (their labels, description, difficulty and family,
+    refreshed from :data:`~hyst_gym.envs.suite_v2.TASKS_V2`), this run's tasks replace or join them, in the
+    order of TASKS_V2; ``runs`` lists every run's tasks, wall and training times and package version, and
+    ``wall_s`` and ``train_wall_s`` are their sums. A stored re-measurement of the speed is dropped (it did not
+    cover this run's tasks). A stored JSON of other settings or seeds is a ValueError."""
+    from hyst_gym.envs.suite_v2 import TASKS_V2
+
+    this_run = {"tasks": list(data["tasks"]), "wall_s": data["wall_s"], "train_wall_s": data["train_wall_s"],
+                "package_version": data["package_version"], "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}
+    if not path.is_file():
+        return {**data, "runs": [this_run]}
+    stored = json.loads(path.read_text())
+    check_mergeable(stored, data, path)
+    tasks = {**stored["tasks"], **data["tasks"]}
+    for task_id, task in tasks.items():
+        if task_id not in data["tasks"] and task_id in TASKS_V2:
+            spec = TASKS_V2[task_id]
+            task.update(description=spec["description"], difficulty=spec["difficulty"], family=spec["family"])
+    order = [t for t in TASKS_V2 if t in tasks] + [t for t in tasks if t not in TASKS_V2]
+    runs = stored.get("runs") or [{"tasks": list(stored["tasks"]), "wall_s": stored["wall_s"],
+                                   "train_wall_s": stored["train_wall_s"], "package_version": stored["package_version"]}]
+    runs = [{**run, "tasks": [t for t in run["tasks"] if t not in data["tasks"]]} for run in runs]
+    runs = [run for run in runs if run["tasks"]] + [this_run]  # an earlier run's wall time is its whole run's
+    merged = {**data, "tasks": {t: tasks[t] for t in order}, "env_ids": order, "runs": runs,
+              "wall_s": sum(run["wall_s"] for run in runs), "train_wall_s": sum(run["train_wall_s"] for run in runs)}
+    merged.pop("speed_remeasured", None)
+    return merged
+
+
+def run_suite(profile: Profile, task_ids, out: pathlib.Path, figure_path: pathlib.Path, raw: pathlib.Path = RAW,
+              docs: pathlib.Path | None = None, log=print, merge: bool = False) -> dict:
+    import hyst_gym
+
     start = time.time()
+    stem = "suite_v2" if profile.name == "full" else f"suite_v2_{profile.name}"
+    if merge and (out / f"{stem}.json").is_file():  # before the run, not after it
+        check_mergeable(json.loads((out / f"{stem}.json").read_text()), run_record(profile), out / f"{stem}.json")
     if profile.train:
         train_all(task_ids, profile, raw, log)
     train_s = time.time() - start
@@ -676,9 +776,7 @@ def run_suite(profile: Profile, task_ids, out: pathlib.Path, figure_path: pathli
         tasks[task_id] = summary
     data = {"suite": "v2", "profile": profile.name, "profile_note": PROFILE_NOTES[profile.name],
             "package_version": hyst_gym.__version__, "env_ids": list(task_ids), "heldout_draws": profile.heldout,
-            "seeds": {"tuning": list(TUNING_SEEDS[:profile.tuning]), "heldout": list(HELDOUT_SEEDS[:profile.heldout]),
-                      "rl_training": list(range(profile.rl_seeds))},
-            "settings": asdict(profile),
+            **run_record(profile),
             "rl_budget": ", ".join(f"{algo} {steps:,} env steps x {profile.rl_seeds} seeds"
                                    for algo, steps in profile.rl_steps.items())
                          + "; flatness check: " + ", ".join(
@@ -687,10 +785,11 @@ def run_suite(profile: Profile, task_ids, out: pathlib.Path, figure_path: pathli
             "targets": {"headroom": HEADROOM_TARGET, "rl_gap_left": GAP_TARGET, "speed_steps_per_s": SPEED_TARGETS},
             "tasks": tasks, "sanity_tier": sanity_tier(),
             "rerun": "hyst-gym benchmark --suite v2 " + {"full": "", "quick": "--quick", "reduced": "--reduced"}[
-                profile.name] + " --tasks TASK_ID",
+                profile.name] + " --tasks TASK_ID --merge",
             "train_wall_s": train_s, "wall_s": time.time() - start}
-    stem = "suite_v2" if profile.name == "full" else f"suite_v2_{profile.name}"
     out.mkdir(parents=True, exist_ok=True)
+    if merge:
+        data = merge_stored(data, out / f"{stem}.json")
     (out / f"{stem}.json").write_text(json.dumps(data, indent=1))
     text = markdown(data)
     (out / f"{stem}.md").write_text(text)
@@ -718,6 +817,8 @@ def configure_parser(parser) -> None:
                         "(24 draws, RL at small budgets, 3 seeds); writes suite_v2_reduced.*")
     parser.add_argument("--no-docs", action="store_true", help="v2 only: do not rewrite the suite-v2 section of "
                         "docs/results/suite.md (the full and reduced profiles write it)")
+    parser.add_argument("--merge", action="store_true", help="v2 only: keep the other tasks of the profile's "
+                        "stored JSON (same settings) and replace or add only the --tasks of this run")
     parser.add_argument("--speed-only", action="store_true", help="v2 only: train and evaluate nothing; re-measure "
                         "the env speed of the tasks in the profile's stored JSON and rewrite its JSON, table and page "
                         "section (the speed measured beside training is low)")
@@ -746,8 +847,8 @@ def main(args) -> int:
               file=sys.stderr)
         return 2
     if args.suite == "v1":
-        if args.reduced or args.no_docs or getattr(args, "speed_only", False):
-            print("hyst-gym benchmark: error: --reduced, --no-docs and --speed-only are options of --suite v2",
+        if args.reduced or args.no_docs or getattr(args, "speed_only", False) or getattr(args, "merge", False):
+            print("hyst-gym benchmark: error: --reduced, --no-docs, --merge and --speed-only are options of --suite v2",
                   file=sys.stderr)
             return 2
         from experiments.suite_v1 import main as v1_main
@@ -767,7 +868,13 @@ def main(args) -> int:
         remeasure_speed(path, figure_path, docs, "hyst-gym benchmark --suite v2 --speed-only"
                         + {"full": "", "quick": " --quick", "reduced": " --reduced"}[profile.name])
         return 0
-    run_suite(profile, task_ids, out, figure_path, docs=docs)
+    try:
+        run_suite(profile, task_ids, out, figure_path, docs=docs, merge=getattr(args, "merge", False))
+    except ValueError as error:
+        if not str(error).startswith("merge:"):
+            raise
+        print(f"hyst-gym benchmark: error: --{error}", file=sys.stderr)
+        return 2
     return 0
 
 

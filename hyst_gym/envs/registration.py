@@ -30,7 +30,7 @@ ENV_IDS.update({env_id: ("hyst_gym.envs.suite:make_env", "hyst_gym.envs.suite:ma
                 for env_id in SUITE_IDS})
 #: suite v2's task ids (:mod:`hyst_gym.envs.suite_v2`: envs of their own, made with ``task=id``)
 SUITE_V2_IDS = ("hyst_gym/HotCalibrate-v0", "hyst_gym/HotCalibrateNoisy-v0", "hyst_gym/DisplacementOnly-v0",
-                "hyst_gym/DriftJump-v0")
+                "hyst_gym/HotCalibrateUnknownK-v0", "hyst_gym/DriftJump-v0")
 ENV_IDS.update({env_id: ("hyst_gym.envs.suite_v2:make_env", "hyst_gym.envs.suite_v2:make_vector_env")
                 for env_id in SUITE_V2_IDS})
 

@@ -6,6 +6,8 @@ Two kinds of task, both on the compiled simulator of :mod:`hyst_gym.envs.core`:
   estimate of a every step), whose floor is a Van Trees bound
   (:mod:`hyst_gym.estimation.information_bound`): :class:`HotCalibrateEnv` and its noisy and
   displacement-only variants;
+* the **several unknowns** task :class:`HotCalibrateUnknownKEnv`: the same calibration with the pinning
+  constant k of model (6) drawn per episode from a uniform prior (:class:`PinningPrior`);
 * **drift-jump** task (``Excitation`` mode, the built-in min-max estimator identifies a): a
   jumps at an unknown time, :class:`DriftJumpEnv`; its floor is an oracle.
 
@@ -16,6 +18,8 @@ vectorization_mode="vector_entry_point")`` build them through :func:`make_env` a
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -41,27 +45,61 @@ JUMP_RANGE = (278.15, 323.15)
 CALIBRATE_SCORED_FROM = 100
 
 
-def _task(kind, description, difficulty, config, sensors=None):
-    return {"kind": kind, "description": description, "difficulty": difficulty, "config": config,
-            "sensors": sensors, "scored_from": CALIBRATE_SCORED_FROM if kind == "calibrate" else 0}
+@dataclass(frozen=True)
+class PinningPrior:
+    """Uniform prior of the pinning constant k of model (6) over ``[low, high]`` (A/m, ``0 < low < high``),
+    drawn per episode: ``k = low + (high - low)*u`` with u uniform from the sub-env's episode generator,
+    drawn after the simulator's own draws."""
+
+    low: float
+    high: float
+
+    def __post_init__(self):
+        for name in ("low", "high"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value <= 0:
+                raise ValueError(f"PinningPrior: {name} must be a finite number > 0 (A/m), got {value!r}")
+        if not self.low < self.high:
+            raise ValueError(f"PinningPrior: high must exceed low, got low={self.low!r}, high={self.high!r}")
+
+    def nodes(self, count: int) -> np.ndarray:
+        """``count`` midpoints of equal cells over the support (A/m)."""
+        return self.low + (self.high - self.low) * (np.arange(count) + 0.5) / count
 
 
-#: id -> {"kind" ("calibrate" or "jump"), "description", "difficulty", "config" (EnvConfig overrides),
-#: "sensors" (observation entries hidden from the agent, or None), "scored_from" (first step of the metric)}
+#: k of the "several unknowns" task: +-20 % about the Terfenol-D value of model (6), 400 A/m
+K_PRIOR = PinningPrior(320.0, 480.0)
+
+
+def _task(kind, family, description, difficulty, config, sensors=None, k_prior=None):
+    return {"kind": kind, "family": family, "description": description, "difficulty": difficulty,
+            "config": config, "sensors": sensors, "k_prior": k_prior,
+            "scored_from": CALIBRATE_SCORED_FROM if kind == "calibrate" else 0}
+
+
+#: id -> {"kind" ("calibrate" or "jump"), "family" (issue 23's family), "description", "difficulty",
+#: "config" (EnvConfig overrides), "sensors" (observation entries hidden from the agent, or None),
+#: "k_prior" (a :class:`PinningPrior`, or None: k fixed at the preset's), "scored_from" (first step of the metric)}
 TASKS_V2 = {
     "hyst_gym/HotCalibrate-v0": _task(
-        "calibrate", "Calibrate a hot coil: report a every step while exciting; the coil overheats if "
-        "excited at full field for about a second from a warm start", 1, CALIBRATE),
+        "calibrate", "hot coil (calibrate)", "Calibrate a hot coil: report a every step while exciting; the coil "
+        "overheats if excited at full field for about a second from a warm start", 1, CALIBRATE),
     "hyst_gym/HotCalibrateNoisy-v0": _task(
-        "calibrate", "The hot-coil calibration with a 10x noisier sensor (1e-3 of full scale)", 2,
-        {**CALIBRATE, "output_noise": 1.0e-3}),
+        "calibrate", "hot coil (calibrate)", "The hot-coil calibration with a 10x noisier sensor (1e-3 of full "
+        "scale)", 2, {**CALIBRATE, "output_noise": 1.0e-3}),
     "hyst_gym/DisplacementOnly-v0": _task(
-        "calibrate", "The hot-coil calibration on the lumped transducer (13) with only the tip displacement "
-                     "sensed (no velocity), 10x sensor noise", 3,
+        "calibrate", "displacement-only sensing", "The hot-coil calibration on the lumped transducer (13) with "
+        "only the tip displacement sensed (no velocity), 10x sensor noise", 3,
         {**CALIBRATE, "transducer": "lumped", "output_noise": 1.0e-3}, sensors=("velocity",)),
+    "hyst_gym/HotCalibrateUnknownK-v0": _task(
+        "calibrate", "several unknowns", "The hot-coil calibration with the pinning constant k also unknown "
+        "(uniform over 320..480 A/m, +-20 % about nominal, per episode); k shapes the loops, so an estimate "
+        "of a that assumes the nominal k is biased unless the input makes reversals that tell k apart", 3,
+        CALIBRATE, k_prior=K_PRIOR),
     "hyst_gym/DriftJump-v0": _task(
-        "jump", "Mount change: at an unknown time in 2..8 s the coil and its surroundings step by 5..12 K, so a "
-                "jumps by 120..290 A/m; the min-max estimator must be re-excited without overheating", 4, JUMP),
+        "jump", "drift events", "Mount change: at an unknown time in 2..8 s the coil and its surroundings step by "
+        "5..12 K, so a jumps by 120..290 A/m; the min-max estimator must be re-excited without overheating", 4,
+        JUMP),
 }
 
 
@@ -79,17 +117,70 @@ def task_config_v2(task: str, **overrides):
 # ---------------------------------------------------------------------------- calibration
 
 
+def set_pinning(sim, rows, k) -> None:
+    """Set the pinning constant k (A/m) of sub-envs ``rows`` of a
+    :class:`~hyst_gym.envs.core.BatchSimulator`: the per-row array the plant kernel reads (``PlantParams.k``),
+    so the next steps of those rows follow model (6) with that k."""
+    sim._plant_params.k[rows] = k
+
+
+def pinning_of(sim) -> np.ndarray:
+    """The pinning constant k (A/m) of every sub-env of a simulator (a copy)."""
+    return np.array(sim._plant_params.k, dtype=np.float64)
+
+
+#: the reset option of the "several unknowns" task: the episode's k (A/m), bypassing the prior
+PINNING_OPTION = "pinning_k"
+
+
+def _pinning_option(options):
+    """(simulator options, the ``pinning_k`` option or None); a bad value is a ValueError naming it."""
+    if not isinstance(options, dict) or PINNING_OPTION not in options:
+        return options, None
+    options = dict(options)
+    value = options.pop(PINNING_OPTION)
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or \
+            not np.isfinite(value) or value <= 0:
+        raise ValueError(f"reset option {PINNING_OPTION} must be a finite number > 0 (A/m), got {value!r}")
+    return options, float(value)
+
+
+def _draw_pinning_on_reset(sim, prior: PinningPrior) -> None:
+    """Make every reset of ``sim`` (the env's reset and the vector env's autoresets alike) draw each reset
+    row's k from ``prior`` with the row's episode generator, after the simulator's own draws; the reset
+    option ``pinning_k`` (A/m) sets it instead."""
+    reset = sim.reset
+
+    def reset_with_pinning(rows, options=None):
+        options, fixed = _pinning_option(options)
+        reset(rows, options)
+        rows = np.atleast_1d(np.asarray(rows, dtype=np.int64))
+        drawn = np.array([prior.low + (prior.high - prior.low) * sim.episode_rngs[row].random() for row in rows])
+        set_pinning(sim, rows, drawn if fixed is None else fixed)
+
+    sim.reset = reset_with_pinning
+
+
 class _Calibrate:
     """Shared by the single and the vector calibration env: the raised-cosine prior on the start
-    temperature and the sensor selection (observation columns kept)."""
+    temperature, the sensor selection (observation columns kept) and, where the task has one, the
+    prior of k."""
 
-    def _setup_calibrate(self, hidden):
+    def _setup_calibrate(self, hidden, k_prior=None):
         self.sim.temperature_quantile = raised_cosine_quantile
+        self.k_prior = k_prior
+        if k_prior is not None:
+            _draw_pinning_on_reset(self.sim, k_prior)
         names = self.sim.obs_names
         self._keep = np.array([i for i, name in enumerate(names) if name not in (hidden or ())])
         self.kept_names = [names[i] for i in self._keep]
         low, high = self.sim.obs_low[self._keep], self.sim.obs_high[self._keep]
         return low, high
+
+    @property
+    def k_true(self) -> np.ndarray:
+        """The pinning constant k of each sub-env's episode (A/m; the preset's k where the task has no prior)."""
+        return pinning_of(self.sim)
 
 
 class HotCalibrateEnv(_Calibrate, IdentificationEnv):
@@ -152,7 +243,7 @@ class HotCalibrateEnv(_Calibrate, IdentificationEnv):
             raise ValueError(f"{task!r} is not a calibration task")
         super().__init__(make_config(**{**spec["config"], **overrides}), render_mode=render_mode)
         self.task = task
-        low, high = self._setup_calibrate(spec["sensors"])
+        low, high = self._setup_calibrate(spec["sensors"], spec["k_prior"])
         from gymnasium import spaces
 
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
@@ -180,7 +271,7 @@ class HotCalibrateVectorEnv(_Calibrate, IdentificationVectorEnv):
         super().__init__(num_envs, make_config(**{**spec["config"], **overrides.pop("config_overrides", {})}),
                          **overrides)
         self.task = task
-        low, high = self._setup_calibrate(spec["sensors"])
+        low, high = self._setup_calibrate(spec["sensors"], spec["k_prior"])
         from gymnasium import spaces
         from gymnasium.vector.utils import batch_space
 
@@ -203,6 +294,84 @@ class HotCalibrateVectorEnv(_Calibrate, IdentificationVectorEnv):
                 final[row] = None if obs is None else obs[self._keep]
             info["final_obs"] = final
         return observation[:, self._keep], reward, terminated, truncated, info
+
+
+class HotCalibrateUnknownKEnv(HotCalibrateEnv):
+    """``hyst_gym/HotCalibrateUnknownK-v0``: calibrate a with the pinning constant k unknown too.
+
+    ## Description
+    Issue 23's "several unknowns" family. The hot-coil calibration of ``hyst_gym/HotCalibrate-v0`` (coil
+    C_th 5 J/K, R_th 4 K/W, start temperature from a raised-cosine prior over 5..45 C, no ambient drift, the
+    coil overheats at 60 C) in which the pinning (domain-wall loss) constant k of model (6) is unknown as
+    well: each episode draws k uniformly over 320..480 A/m (+-20 % about the Terfenol-D value 400 A/m,
+    :data:`K_PRIOR`). k and a both lower M on the initial magnetization curve, so a rising field alone
+    confounds them; after a reversal a larger k *raises* M (wider loops) while a larger a still lowers it,
+    so only an input that makes reversals and minor loops tells them apart. The agent drives the coil and
+    reports its estimate of a every step; k is a nuisance it need not report.
+
+    The floor is the Van Trees bound of the k-known task computed with a sensitivity envelope over the
+    whole k prior (``calibration_floor``): knowing k can only help (``[J^-1]_aa >= 1/J_aa``), so it bounds
+    every estimate here too, but it ignores the k uncertainty and is therefore looser than a bound with k
+    as a nuisance.
+
+    ## Action Space
+    ``Box(-1, 1, (2,))``: (field command / field_limit (1e5 A/m); the applied field moves towards it by at
+    most 2500 A/m per step), (estimate of a mapped onto Theta = [6500, 8100] A/m).
+
+    ## Observation Space
+    ``Box(float32)``, normalized, clipped to the bounds (as ``hyst_gym/HotCalibrate-v0``):
+
+    | index | name | min | max | meaning (unit) |
+    |---|---|---|---|---|
+    | 0 | output | -2 | 2 | y / y(Ms) |
+    | 1 | field | -1 | 1 | H / 1e5 A/m |
+    | 2 | elapsed | 0 | 1 | step / 200 |
+    | 3 | previous_estimate | -1 | 1 | the last reported estimate mapped from Theta |
+
+    Measurement noise: 1e-4 of the output's scale, Gaussian, per step.
+
+    ## Rewards
+    ``-|a_estimate - a_true| / width(Theta)`` per step, minus the soft temperature penalty within 5 K of the
+    limit; on an overheat, minus the remaining steps. The suite's metric is the RMS of
+    ``a_estimate - a_true`` (A/m) over steps 101..200 and the draws, counting width(Theta) per step after an
+    overheat.
+
+    ## Starting State
+    Field 0, M = 0, coil at ``T0 = 278.15 + 40*Q(u)`` K (Q the raised-cosine quantile), a = 7012*T0/293.15 A/m,
+    and ``k = 320 + 160*u'`` A/m, u and u' uniform from the env's seeded generator (u' drawn after the
+    simulator's own draws). ``reset`` returns ``info["k_true"]``; the attribute ``k_true`` holds it too.
+
+    ## Episode End
+    ``terminated``: the coil passes 333.15 K (60 C). ``truncated``: 200 steps (10 s at dt = 0.05 s).
+
+    ## Arguments
+    ``gymnasium.make(id, **overrides)``: any :class:`~hyst_gym.envs.config.EnvConfig` field on top of the
+    preset. Reset options as :class:`~hyst_gym.envs.single.HystEnv` (``initial_temperature`` bypasses the
+    temperature prior) and ``pinning_k`` (A/m, > 0), which bypasses the k prior.
+
+    ## Version History
+    * v0: first version (suite v2, issue 23).
+    """
+
+    def __init__(self, task: str = "hyst_gym/HotCalibrateUnknownK-v0", render_mode=None, **overrides):
+        if _spec(task)["k_prior"] is None:
+            raise ValueError(f"{task!r} has no prior over k; use HotCalibrateEnv")
+        super().__init__(task, render_mode=render_mode, **overrides)
+
+    def reset(self, *, seed=None, options=None):
+        observation, info = super().reset(seed=seed, options=options)
+        info["k_true"] = float(self.k_true[0])
+        return observation, info
+
+
+class HotCalibrateUnknownKVectorEnv(HotCalibrateVectorEnv):
+    """Native vector env of ``hyst_gym/HotCalibrateUnknownK-v0`` (see :class:`HotCalibrateUnknownKEnv`):
+    every reset, the automatic ones included, draws each reset sub-env's k; ``k_true`` holds them."""
+
+    def __init__(self, num_envs: int = 1, task: str = "hyst_gym/HotCalibrateUnknownK-v0", **overrides):
+        if _spec(task)["k_prior"] is None:
+            raise ValueError(f"{task!r} has no prior over k; use HotCalibrateVectorEnv")
+        super().__init__(num_envs, task, **overrides)
 
 
 # ---------------------------------------------------------------------------- drift jump
@@ -363,7 +532,11 @@ class DriftJumpVectorEnv(_Jump, ExcitationVectorEnv):
 
 def make_env(task: str, **overrides):
     """Gymnasium entry point of a v2 id."""
-    cls = HotCalibrateEnv if _spec(task)["kind"] == "calibrate" else DriftJumpEnv
+    spec = _spec(task)
+    if spec["kind"] == "calibrate":
+        cls = HotCalibrateEnv if spec["k_prior"] is None else HotCalibrateUnknownKEnv
+    else:
+        cls = DriftJumpEnv
     return cls(task, **overrides)
 
 
@@ -374,11 +547,13 @@ def make_vector_env(task: str, num_envs: int = 1, **overrides):
     env_keys = {"max_episode_steps", "autoreset_mode", "render_mode"}
     config_overrides = {k: v for k, v in overrides.items() if k not in env_keys}
     env_args = {k: v for k, v in overrides.items() if k in env_keys}
-    return HotCalibrateVectorEnv(num_envs, task, config_overrides=config_overrides, **env_args)
+    cls = HotCalibrateVectorEnv if _spec(task)["k_prior"] is None else HotCalibrateUnknownKVectorEnv
+    return cls(num_envs, task, config_overrides=config_overrides, **env_args)
 
 
-__all__ = ["DriftJumpEnv", "DriftJumpVectorEnv", "HotCalibrateEnv", "HotCalibrateVectorEnv", "TASKS_V2",
-           "make_env", "make_vector_env", "task_config_v2"]
+__all__ = ["K_PRIOR", "DriftJumpEnv", "DriftJumpVectorEnv", "HotCalibrateEnv", "HotCalibrateUnknownKEnv",
+           "HotCalibrateUnknownKVectorEnv", "HotCalibrateVectorEnv", "PinningPrior", "TASKS_V2", "make_env",
+           "make_vector_env", "pinning_of", "set_pinning", "task_config_v2"]
 
 
 # ---------------------------------------------------------------------------- the floor of the calibration tasks
@@ -414,23 +589,46 @@ def bound_setting(config):
 
 #: random admissible histories of the sensitivity envelope (and as many again to check it)
 ENVELOPE_PATHS = 256
+#: values of k (evenly over the task's k prior, ends included) whose envelopes the floor takes the largest of
+K_FLOOR_NODES = 5
+#: histories per k value on a task with a k prior: with 256, a low-field bin at k = 320 A/m came out 3.7x
+#: above the envelope on the check histories, and the check's scaling carries that factor to every field
+K_ENVELOPE_PATHS = 4 * ENVELOPE_PATHS
 
 
-def calibration_floor(task: str, n_paths: int = ENVELOPE_PATHS) -> dict:
+def calibration_floor(task: str, n_paths: int | None = None) -> dict:
     """The Van Trees floor of a calibration task (RMS error over its scored steps and the prior, A/m), with
-    the pieces it is made of (``whole_episode``: the same over all steps)."""
-    from ..estimation.information_bound import episode_floor, sensitivity_table
+    the pieces it is made of (``whole_episode``: the same over all steps). ``n_paths``: random histories of
+    the envelope (default :data:`ENVELOPE_PATHS`, :data:`K_ENVELOPE_PATHS` per k value on a task with a k
+    prior, where the envelope is the largest over :data:`K_FLOOR_NODES` values of k)."""
+    from ..estimation.information_bound import SensitivityTable, episode_floor, sensitivity_table
 
     config = task_config_v2(task)
     setting = bound_setting(config)
     a_top = float(config.a_of(config.temperature_limit))
-    table = sensitivity_table(config.hysteresis, (setting.a_lo, a_top), config.field_limit, config.max_field_change,
-                              config.max_field_step, n_paths=n_paths, steps=config.episode_steps)
+    k_prior = TASKS_V2[task]["k_prior"]
+    if n_paths is None:
+        n_paths = ENVELOPE_PATHS if k_prior is None else K_ENVELOPE_PATHS
+    k_values = [config.hysteresis.k] if k_prior is None else list(np.linspace(k_prior.low, k_prior.high, K_FLOOR_NODES))
+    tables = [sensitivity_table(config.hysteresis.replace(k=float(k)), (setting.a_lo, a_top), config.field_limit,
+                                config.max_field_change, config.max_field_step, n_paths=n_paths,
+                                steps=config.episode_steps) for k in k_values]
+    table = tables[0] if len(tables) == 1 else SensitivityTable(
+        tables[0].fields, np.max([t.envelope for t in tables], axis=0), max(t.curve_ratio for t in tables),
+        max(t.check_ratio for t in tables))
     first = TASKS_V2[task]["scored_from"]
-    return {"value": episode_floor(setting, table, first), "kind": "bound",
-            "whole_episode": episode_floor(setting, table),
-            "how": f"Van Trees: RMS over steps {first + 1}..{setting.steps} of 1/sqrt(J_prior + I_t), I_t <= G^2 sum Phi^2/sigma^2 (slew-reach "
-                   "envelope of |dM/da|, thermal limit relaxed); envelope from the initial curve and "
-                   f"{n_paths} random admissible histories, checked on {n_paths} independent ones",
-            "gain_per_Ms": float(setting.gain * config.hysteresis.Ms), "peak_sensitivity": float(table.envelope[-1]),
-            "histories_over_initial_curve": table.curve_ratio, "check_ratio": table.check_ratio}
+    floor = {"value": episode_floor(setting, table, first), "kind": "bound",
+             "whole_episode": episode_floor(setting, table),
+             "how": f"Van Trees: RMS over steps {first + 1}..{setting.steps} of 1/sqrt(J_prior + I_t), I_t <= G^2 sum Phi^2/sigma^2 (slew-reach "
+                    "envelope of |dM/da|, thermal limit relaxed); envelope from the initial curve and "
+                    f"{n_paths} random admissible histories, checked on {n_paths} independent ones",
+             "gain_per_Ms": float(setting.gain * config.hysteresis.Ms), "peak_sensitivity": float(table.envelope[-1]),
+             "histories_over_initial_curve": table.curve_ratio, "check_ratio": table.check_ratio}
+    if k_prior is not None:
+        floor["ignores"] = (f"the uncertainty of k (uniform over {k_prior.low:g}..{k_prior.high:g} A/m): the bound is the "
+                            "k-known one (conditional on k, Van Trees on a alone; knowing k can only help, "
+                            "[J^-1]_aa >= 1/J_aa), with the sensitivity envelope taken as the largest over "
+                            f"k = {', '.join(f'{k:g}' for k in k_values)} A/m, so it holds for every k of the prior; "
+                            "it is looser than a bound with k as a nuisance parameter")
+        floor["k_nodes"] = [float(k) for k in k_values]
+    return floor

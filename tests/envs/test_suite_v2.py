@@ -56,16 +56,19 @@ def test_jump_moves_a_at_the_drawn_step():
     assert env.jump_step[0] == 7 and env.jump_change[0] == -6.0
 
 
-@pytest.mark.parametrize("task_id", ["hyst_gym/DriftJump-v0", "hyst_gym/DisplacementOnly-v0"])
+@pytest.mark.parametrize("task_id", ["hyst_gym/DriftJump-v0", "hyst_gym/DisplacementOnly-v0",
+                                     "hyst_gym/HotCalibrateUnknownK-v0"])
 def test_single_equals_vector_and_is_deterministic(task_id):
     n, steps = 3, 120
     rng = np.random.default_rng(0)
-    actions = rng.uniform(-1, 1, (steps, n, 2 if "Displacement" in task_id else 1)).astype(np.float32)
+    actions = rng.uniform(-1, 1, (steps, n) + gymnasium.make(task_id).action_space.shape).astype(np.float32)
     venv = _vec(task_id, n)
     vobs, _ = venv.reset(seed=11)
     singles = [gymnasium.make(task_id) for _ in range(n)]
     sobs = [env.reset(seed=11 + i)[0] for i, env in enumerate(singles)]
     assert np.array_equal(vobs, np.array(sobs))
+    if task_id.endswith("UnknownK-v0"):  # the same k per sub-env as its single twin
+        assert np.array_equal(venv.unwrapped.k_true, [env.unwrapped.k_true[0] for env in singles])
     for t in range(steps):
         vobs, vrew, _, _, vinfo = venv.step(actions[t])
         for i, env in enumerate(singles):
@@ -93,3 +96,88 @@ def test_sb3_adapter_trains_a_few_steps(task_id):
     model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu")
     model.learn(128)
     assert venv.observation_space.shape == gymnasium.make(task_id).observation_space.shape
+
+
+UNKNOWN_K = "hyst_gym/HotCalibrateUnknownK-v0"
+
+
+def test_unknown_k_is_drawn_per_episode_from_its_prior_and_seeded():
+    venv = _vec(UNKNOWN_K, 400)
+    venv.reset(seed=0)
+    k = venv.unwrapped.k_true
+    # uniform over 320..480 A/m: mean 400, standard deviation 160/sqrt(12) = 46.2
+    assert k.min() >= 320.0 and k.max() <= 480.0 and np.unique(k).size == k.size
+    assert abs(k.mean() - 400.0) < 8.0 and abs(k.std() - 160 / np.sqrt(12)) < 5.0
+    env = gymnasium.make(UNKNOWN_K)
+    first = env.reset(seed=7)[1]["k_true"]
+    second = env.reset()[1]["k_true"]
+    assert first != second and env.reset(seed=7)[1]["k_true"] == first
+    assert env.reset(seed=7, options={"pinning_k": 333.0})[1]["k_true"] == 333.0
+    # the k-known task keeps the preset's k
+    assert np.all(_vec("hyst_gym/HotCalibrate-v0", 4).unwrapped.k_true == 400.0)
+
+
+def test_autoreset_draws_the_next_k_as_a_single_env_reset_does():
+    env = gymnasium.make(UNKNOWN_K, episode_steps=5)
+    env.reset(seed=3)
+    for _ in range(5):
+        env.step(np.zeros(2, dtype=np.float32))
+    expected = env.reset()[1]["k_true"]
+    venv = _vec(UNKNOWN_K, 1, episode_steps=5)
+    venv.reset(seed=3)
+    before = float(venv.unwrapped.k_true[0])
+    for _ in range(6):  # 5 steps end the episode, the 6th resets it (NEXT_STEP)
+        venv.step(np.zeros((1, 2), dtype=np.float32))
+    assert float(venv.unwrapped.k_true[0]) == expected != before
+
+
+def _outputs(k, field):
+    """The noise-free normalized output along ``field`` (normalized commands) from the same start, with k."""
+    env = gymnasium.make(UNKNOWN_K, output_noise=0.0)
+    env.reset(seed=1, options={"pinning_k": k, "initial_temperature": 293.15})
+    return np.array([env.step(np.array([u, 0.0], dtype=np.float32))[0][0] for u in field])
+
+
+def test_k_changes_the_loops_as_model_6_says():
+    """A larger k (wider loops) lowers M while the field rises from the demagnetized state and raises it after
+    the reversal; the same k gives the same output."""
+    field = np.concatenate([np.linspace(0.025, 0.8, 32), np.full(8, 0.8), np.linspace(0.775, -0.6, 56)])
+    low, high = _outputs(320.0, field), _outputs(480.0, field)
+    assert np.array_equal(low, _outputs(320.0, field))
+    rising, falling = slice(4, 32), slice(50, 96)
+    assert np.all(high[rising] < low[rising]) and np.all(high[falling] > low[falling])
+    # an order of magnitude above the sensor noise of the task (1e-4 of full scale)
+    assert np.max(np.abs(high - low)) > 10 * gymnasium.make(UNKNOWN_K).unwrapped.config.output_noise
+
+
+def test_unknown_k_passes_the_checkers_and_rejects_a_bad_k():
+    import warnings
+
+    from gymnasium.utils.env_checker import check_env
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(gymnasium.make(UNKNOWN_K).unwrapped)
+        sb3_check_env(gymnasium.make(UNKNOWN_K).unwrapped)
+    env = gymnasium.make(UNKNOWN_K)
+    for bad in (-1.0, float("nan"), "400", True):
+        with pytest.raises(ValueError, match="pinning_k"):
+            env.reset(seed=0, options={"pinning_k": bad})
+    from hyst_gym.envs.suite_v2 import PinningPrior
+
+    with pytest.raises(ValueError, match="high"):
+        PinningPrior(400.0, 300.0)
+    with pytest.raises(ValueError, match="low"):
+        PinningPrior(-1.0, 300.0)
+
+
+def test_unknown_k_floor_is_the_k_known_bound_over_the_whole_prior():
+    """The floor holds for every k of the prior (its envelope is the largest over k), so it lies below the
+    k-known task's, and the record says it ignores the k uncertainty."""
+    from hyst_gym.envs.suite_v2 import calibration_floor
+
+    known = calibration_floor("hyst_gym/HotCalibrate-v0")
+    unknown = calibration_floor(UNKNOWN_K)
+    assert unknown["kind"] == "bound" and 0 < unknown["value"] < known["value"]
+    assert "ignores" not in known and "looser" in unknown["ignores"] and unknown["k_nodes"][0] == 320.0

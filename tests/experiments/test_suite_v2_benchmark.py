@@ -104,3 +104,58 @@ def test_speed_only_rewrites_the_speed_and_keeps_the_rest(tmp_path):
         assert again["tasks"][task_id][key] == stored["tasks"][task_id][key]
     assert again["speed_remeasured"]["command"].endswith("--speed-only") and data == again
     assert "re-measured by `hyst-gym benchmark --suite v2 --reduced --speed-only`" in path.with_suffix(".md").read_text()
+
+
+def test_posterior_that_marginalizes_k_beats_the_one_that_assumes_nominal_k():
+    """On draws with k at the edge of its prior (330 A/m), the (T0, k) grid posterior reports a far closer to
+    the truth over the scored steps than the posterior that assumes k = 400 A/m under the same input; with
+    k = 400 both are close."""
+    from baselines.calibration_agents import PosteriorCalibration
+    from baselines.schedules import Sine
+    from baselines.suite_agents import Design
+
+    task = "hyst_gym/HotCalibrateUnknownK-v0"
+    design = [Design("sine", Sine(amplitude=60000.0, frequency=0.5, offset=0.0))]
+    seeds = [5, 6, 7, 8]
+
+    def rms(k_nodes, k):
+        agent = PosteriorCalibration(suite_v2.field_agent(design, task), task, k_nodes=k_nodes,
+                                     nodes=64 if k_nodes == 1 else None)
+        return float(np.sqrt(suite_v2.play(agent, task, seeds, options={"pinning_k": k})[0].mean()))
+
+    marginal, nominal = rms(None, 330.0), rms(1, 330.0)
+    assert marginal < 15.0 and 3 * marginal < nominal
+    assert rms(1, 400.0) < 15.0 and rms(None, 400.0) < 15.0
+    with pytest.raises(ValueError, match="k_nodes"):
+        PosteriorCalibration(suite_v2.field_agent(design, CALIBRATE), CALIBRATE, k_nodes=5)
+
+
+def _stored(task_ids, profile, wall=60.0):
+    record = suite_v2.run_record(profile)
+    return {"suite": "v2", "profile": profile.name, "package_version": "0", "env_ids": list(task_ids),
+            "tasks": {t: {"description": "old", "difficulty": 9, "family": "old", "agents": {"x": t}} for t in task_ids},
+            "wall_s": wall, "train_wall_s": 1.0, "speed_remeasured": {"command": "c"}, **record}
+
+
+def test_merge_keeps_the_other_tasks_and_replaces_the_run_s(tmp_path):
+    import json
+
+    from hyst_gym.envs.suite_v2 import TASKS_V2
+
+    profile = suite_v2.PROFILES["reduced"]
+    path = tmp_path / "suite_v2_reduced.json"
+    path.write_text(json.dumps(_stored(["hyst_gym/DriftJump-v0", CALIBRATE], profile)))
+    new = "hyst_gym/HotCalibrateUnknownK-v0"
+    run = _stored([new, CALIBRATE], profile, wall=30.0)
+    run["tasks"][CALIBRATE]["agents"] = {"x": "rerun"}
+    merged = suite_v2.merge_stored(run, path)
+    assert merged["env_ids"] == [t for t in TASKS_V2 if t in (new, CALIBRATE, "hyst_gym/DriftJump-v0")]
+    assert merged["tasks"][CALIBRATE]["agents"] == {"x": "rerun"}                     # replaced by the run
+    kept = merged["tasks"]["hyst_gym/DriftJump-v0"]
+    assert kept["agents"] == {"x": "hyst_gym/DriftJump-v0"} and kept["family"] == "drift events"  # labels refreshed
+    assert [r["tasks"] for r in merged["runs"]] == [["hyst_gym/DriftJump-v0"], [new, CALIBRATE]]
+    assert merged["wall_s"] == 90.0 and "speed_remeasured" not in merged
+    assert "2 runs merged" in suite_v2._wall(merged)
+    other = suite_v2.run_record(suite_v2.PROFILES["quick"])
+    with pytest.raises(ValueError, match="merge: .* other settings"):
+        suite_v2.check_mergeable(json.loads(path.read_text()), other, path)
