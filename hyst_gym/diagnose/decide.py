@@ -25,9 +25,9 @@ Verdicts:
   (:func:`tied_with`) and it halves the base model's held-out RMSE or brings it within
   ``EXPLAINED_RMSE`` noise units;
 * ``ambiguous`` -- several plausible candidates explain the held-out block equally well, i.e.
-  their held-out mean squares differ by no more than the noise makes likely, or by less than
-  ``MATERIAL_SHARE`` of the noise power; the report lists them and names the measurement that
-  would separate them;
+  their held-out mean squares differ by no more than the noise makes likely, or their
+  predictions differ by less than ``MATERIAL_SHARE`` of the noise power on every stretch of it;
+  the report lists them and names the measurement that would separate them;
 * ``unexplained`` -- the base model misses by more than ``UNEXPLAINED_RMSE`` noise units and
   no plausible candidate explains most of it; the report says where the residual lives;
 * ``none`` -- the base model predicts the held-out block to within noise and nothing *material*
@@ -92,7 +92,7 @@ EXPLAINED_RMSE = 2.0
 NONE_CONFIDENCE_CEILING = 0.5
 NAMING_IMPROVEMENT = 0.5
 #: Another plausible candidate ties with the winner unless its held-out mean square is larger by more
-#: than this many standard errors, and by at least ``MATERIAL_SHARE`` of the noise power (:func:`tied_with`).
+#: than this many standard errors and their predictions differ materially (:func:`tied_with`).
 TIE_Z = 2.0
 #: Contiguous blocks of the held-out residual whose means give that standard error.
 TIE_BLOCKS = 20
@@ -272,13 +272,17 @@ def tied_with(candidate, best) -> bool:
       correlated in time): one partial explanation is preferred to another only if it is better
       throughout the held-out block, not on one stretch.
 
-    Either way they also tie when the mean of d is below ``MATERIAL_SHARE`` (noise power units):
-    materiality before significance, as for ``none``. With thousands of held-out samples a
+    Either way they also tie when their predictions differ immaterially: the mean square of
+    r_candidate - r_best (the difference of the two predictions; the data's noise cancels) is below
+    ``MATERIAL_SHARE`` of the noise power on every one of the ``TIE_BLOCKS`` contiguous blocks.
+    Materiality before significance, as for ``none``: with thousands of held-out samples a
     difference of a few per cent of the noise power is significant, yet no larger than the
-    difference between two correct simulators; the record does not tell such candidates apart."""
-    d = candidate.heldout_residual ** 2 - best.heldout_residual ** 2
-    if float(np.mean(d)) < MATERIAL_SHARE:
+    difference between two correct simulators. Per block, so that a miss of a short stretch by
+    several noise units stays a material difference."""
+    difference = (candidate.heldout_residual - best.heldout_residual) ** 2
+    if max(block.mean() for block in np.array_split(difference, TIE_BLOCKS) if block.size) < MATERIAL_SHARE:
         return True
+    d = candidate.heldout_residual ** 2 - best.heldout_residual ** 2
     if best.heldout_rmse <= EXPLAINED_RMSE:
         spread = float(np.sqrt(np.mean((candidate.heldout_residual - best.heldout_residual) ** 2)))
         return bool(np.mean(d) <= TIE_Z * 2.0 * spread / np.sqrt(d.size))
