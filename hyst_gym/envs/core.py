@@ -402,6 +402,20 @@ class BatchSimulator:
 
     # ------------------------------------------------------------------ seeding and reset
 
+    def set_pinning(self, rows, k) -> None:
+        """Set the pinning constant k of model (6) (A/m, > 0) of sub-envs ``rows``: the per-row value
+        the plant kernel reads, so their next steps follow (6) with it. The estimator and the
+        observation scales do not depend on k."""
+        k = np.asarray(k, dtype=np.float64)
+        if not np.all(np.isfinite(k)) or np.any(k <= 0):
+            raise ValueError(f"set_pinning: k must be finite and > 0 (A/m), got {k!r}")
+        self._k[rows] = k
+
+    @property
+    def pinning(self) -> np.ndarray:
+        """The pinning constant k (A/m) of every sub-env (a copy)."""
+        return self._k.copy()
+
     def set_generator(self, row: int, generator: np.random.Generator) -> None:
         """Give sub-env ``row`` its seeded generator (its two streams are spawned from it)."""
         self.episode_rngs[row], self.noise_rngs[row] = spawn_streams(generator)

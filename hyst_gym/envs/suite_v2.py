@@ -119,14 +119,14 @@ def task_config_v2(task: str, **overrides):
 
 def set_pinning(sim, rows, k) -> None:
     """Set the pinning constant k (A/m) of sub-envs ``rows`` of a
-    :class:`~hyst_gym.envs.core.BatchSimulator`: the per-row array the plant kernel reads (``PlantParams.k``),
+    :class:`~hyst_gym.envs.core.BatchSimulator` (:meth:`~hyst_gym.envs.core.BatchSimulator.set_pinning`),
     so the next steps of those rows follow model (6) with that k."""
-    sim._plant_params.k[rows] = k
+    sim.set_pinning(rows, k)
 
 
 def pinning_of(sim) -> np.ndarray:
     """The pinning constant k (A/m) of every sub-env of a simulator (a copy)."""
-    return np.array(sim._plant_params.k, dtype=np.float64)
+    return sim.pinning
 
 
 #: the reset option of the "several unknowns" task: the episode's k (A/m), bypassing the prior

@@ -170,6 +170,12 @@ def test_unknown_k_passes_the_checkers_and_rejects_a_bad_k():
         PinningPrior(400.0, 300.0)
     with pytest.raises(ValueError, match="low"):
         PinningPrior(-1.0, 300.0)
+    sim = env.unwrapped.sim
+    for bad in (0.0, -5.0, float("inf")):
+        with pytest.raises(ValueError, match="k must be"):
+            sim.set_pinning([0], bad)
+    sim.set_pinning([0], 350.0)
+    assert sim.pinning[0] == 350.0 and env.unwrapped.k_true[0] == 350.0
 
 
 def test_unknown_k_floor_is_the_k_known_bound_over_the_whole_prior():
