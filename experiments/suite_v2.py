@@ -329,7 +329,6 @@ def searched_designs(task_id: str, profile: Profile, heldout):
     from baselines.suite_agents import Design
 
     config = task_config(task_id)
-    _, stat = statistic_of(task_id)
     limits = ExcitationLimits(config.field_limit, config.slew_rate_limit, config.dt)
     low = config.initial_temperature_range[0]
     prior = tuple(float(a) for a in config.a_of(np.linspace(low, config.temperature_limit, 5)))
@@ -337,37 +336,37 @@ def searched_designs(task_id: str, profile: Profile, heldout):
                           max_evaluations=profile.fisher_evaluations).design
     tuning = TUNING_SEEDS[:profile.tuning]
 
-    def score(schedule):
-        return stat(play(design_agent([Design("direct_design", schedule)], task_id), task_id, tuning)[0][None, :])
+    def direct_design_for(task):
+        """CMA-ES over a 9-knot field on ``task``'s metric and tuning draws."""
+        _, stat = statistic_of(task)
 
-    direct = search_direct_design(score, limits, config.episode_duration, n_knots=9,
-                                  max_evaluations=profile.cma_evaluations).schedule
+        def score(schedule):
+            return stat(play(design_agent([Design("direct_design", schedule)], task), task, tuning)[0][None, :])
+
+        return search_direct_design(score, limits, config.episode_duration, n_knots=9,
+                                    max_evaluations=profile.cma_evaluations).schedule
+
+    direct = direct_design_for(task_id)
     schedules = [("ramp", Ramp()), ("optimal_design_prior", fisher), ("direct_design", direct)]
+    designs = {"optimal_design_prior": list(fisher.coefficients), "direct_design_knots": list(direct.knots)}
     sibling = k_known_sibling(task_id)
     if sibling is not None:
         # k does not enter the coil's heating, so a design searched with k known is just as admissible
         # here; measured in the reduced run, the task's own search (tuned on a few draws with k unknown)
         # overheated on a held-out draw while the k-known design did not, so the reference (the best
         # input without feedback) must consider both
-        def sibling_score(schedule):
-            return statistic_of(sibling)[1](play(design_agent([Design("direct_design", schedule)], sibling),
-                                                sibling, tuning)[0][None, :])
-
-        schedules.append(("direct_design_k_known", search_direct_design(
-            sibling_score, limits, config.episode_duration, n_knots=9,
-            max_evaluations=profile.cma_evaluations).schedule))
+        k_known = direct_design_for(sibling)
+        schedules.append(("direct_design_k_known", k_known))
+        designs["direct_design_k_known_knots"] = list(k_known.knots)
     agents = {}
     for name, schedule in schedules:
         agents[name] = ("open_loop", play(design_agent([Design(name, schedule)], task_id), task_id, heldout)[0])
-    if task_spec(task_id)["k_prior"] is not None:  # context: the same input, a posterior that assumes nominal k
+    if sibling is not None:  # context: the task's own design, a posterior that assumes nominal k
         from baselines.calibration_agents import POSTERIOR_NODES, PosteriorCalibration
 
         nominal = PosteriorCalibration(field_agent([Design("direct_design", direct)], task_id), task_id,
                                        name="direct_design_nominal_k", k_nodes=1, nodes=POSTERIOR_NODES)
         agents["direct_design_nominal_k"] = ("estimator", play(nominal, task_id, heldout)[0])
-    designs = {"optimal_design_prior": list(fisher.coefficients), "direct_design_knots": list(direct.knots)}
-    if sibling is not None:
-        designs["direct_design_k_known_knots"] = list(schedules[-1][1].knots)
     return agents, designs
 
 

@@ -309,8 +309,9 @@ class HotCalibrateUnknownKEnv(HotCalibrateEnv):
     so only an input that makes reversals and minor loops tells them apart. The agent drives the coil and
     reports its estimate of a every step; k is a nuisance it need not report.
 
-    The floor is the Van Trees bound of the k-known task computed with a sensitivity envelope over the
-    whole k prior (``calibration_floor``): knowing k can only help (``[J^-1]_aa >= 1/J_aa``), so it bounds
+    The floor is the Van Trees bound of the k-known task computed with a sensitivity envelope taken as the
+    largest over five values of k across the prior (``calibration_floor``; sampled, like its random
+    histories, not proven between them): knowing k can only help (``[J^-1]_aa >= 1/J_aa``), so it bounds
     every estimate here too, but it ignores the k uncertainty and is therefore looser than a bound with k
     as a nuisance.
 
@@ -628,7 +629,7 @@ def calibration_floor(task: str, n_paths: int | None = None) -> dict:
         floor["ignores"] = (f"the uncertainty of k (uniform over {k_prior.low:g}..{k_prior.high:g} A/m): the bound is the "
                             "k-known one (conditional on k, Van Trees on a alone; knowing k can only help, "
                             "[J^-1]_aa >= 1/J_aa), with the sensitivity envelope taken as the largest over "
-                            f"k = {', '.join(f'{k:g}' for k in k_values)} A/m, so it holds for every k of the prior; "
+                            f"k = {', '.join(f'{k:g}' for k in k_values)} A/m (sampled like the histories, not proven between them); "
                             "it is looser than a bound with k as a nuisance parameter")
         floor["k_nodes"] = [float(k) for k in k_values]
     return floor

@@ -178,9 +178,9 @@ def test_unknown_k_passes_the_checkers_and_rejects_a_bad_k():
     assert sim.pinning[0] == 350.0 and env.unwrapped.k_true[0] == 350.0
 
 
-def test_unknown_k_floor_is_the_k_known_bound_over_the_whole_prior():
-    """The floor holds for every k of the prior (its envelope is the largest over k), so it lies below the
-    k-known task's, and the record says it ignores the k uncertainty."""
+def test_unknown_k_floor_is_the_k_known_bound_at_k_values_across_the_prior():
+    """The floor's envelope is the largest over k values across the prior (the low end included), so it lies
+    below the k-known task's, and the record says it ignores the k uncertainty."""
     from hyst_gym.envs.suite_v2 import calibration_floor
 
     known = calibration_floor("hyst_gym/HotCalibrate-v0")

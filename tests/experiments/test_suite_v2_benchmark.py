@@ -159,3 +159,18 @@ def test_merge_keeps_the_other_tasks_and_replaces_the_run_s(tmp_path):
     other = suite_v2.run_record(suite_v2.PROFILES["quick"])
     with pytest.raises(ValueError, match="merge: .* other settings"):
         suite_v2.check_mergeable(json.loads(path.read_text()), other, path)
+
+
+def test_k_task_reference_also_plays_the_design_searched_with_k_known():
+    """On the k task the inputs without feedback include the direct design searched on its k-known
+    sibling (same coil, limits and sensors; k does not enter the heating), played here as an open-loop
+    agent; the nominal-k posterior is context, not a candidate reference."""
+    from experiments.suite_v2 import Profile, k_known_sibling, searched_designs
+
+    assert k_known_sibling("hyst_gym/HotCalibrateUnknownK-v0") == "hyst_gym/HotCalibrate-v0"
+    assert k_known_sibling("hyst_gym/HotCalibrate-v0") is None
+    tiny = Profile("test", 2, 2, 2, 2, 0, {}, {}, 10, False)
+    agents, designs = searched_designs("hyst_gym/HotCalibrateUnknownK-v0", tiny, [1000, 1001])
+    assert agents["direct_design_k_known"][0] == "open_loop" and agents["direct_design_nominal_k"][0] == "estimator"
+    assert len(designs["direct_design_k_known_knots"]) == 9
+    assert all(scores.shape == (2,) and np.all(scores >= 0) for _, scores in agents.values())
