@@ -17,5 +17,5 @@ fi
 if ! .venv/bin/python -c "import torch" 2>/dev/null; then
     .venv/bin/python -m pip install --quiet "torch==2.13.0" || .venv/bin/python -m pip install --quiet "torch>=2.3"
 fi
-.venv/bin/python -m pip install --quiet -e ".[rl,test,ray,docs]"
+.venv/bin/python -m pip install --quiet -e ".[rl,test,ray,docs,lint]"
 echo "$want" > "$stamp"
