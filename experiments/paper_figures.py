@@ -71,7 +71,8 @@ def figure_4(out: pathlib.Path, plt) -> pathlib.Path:
         ax.plot(time, fem, "k", label=f"{n} basis elements")
         ax.plot(time, lumped, "C1--", label="lumped model (13)")
         ax.set(xlabel="time (s)", ylabel="tip position (m)",
-               title=f"({'ab'[n == 256]}) N = {n}: max diff {np.max(np.abs(fem - lumped)) / np.max(np.abs(lumped)):.1e}")
+               title=f"({'ab'[n == 256]}) N = {n}: max diff "
+                     f"{np.max(np.abs(fem - lumped)) / np.max(np.abs(lumped)):.1e}")
         ax.legend(fontsize=8, loc="upper right")
         ax.grid(alpha=0.3)
     # Not in the paper: how large the differences get under a step of M (kHz content).

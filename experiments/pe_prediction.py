@@ -129,7 +129,8 @@ def agent_runs(scenario_name: str, raw: pathlib.Path, rl_seeds: int):
         for seed in range(rl_seeds):
             path = raw / "train" / scenario_name / config / f"seed{seed}"
             if (path / "model.zip").exists():
-                runs.append((f"{config}/seed{seed}", "rl", EXCITATION_ID, lambda path=path: make_agent(str(path), scenario)))
+                runs.append((f"{config}/seed{seed}", "rl", EXCITATION_ID,
+                             lambda path=path: make_agent(str(path), scenario)))
     return runs
 
 

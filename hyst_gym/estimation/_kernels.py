@@ -460,7 +460,8 @@ def estimator_step(field, measured, bank, bank_params, state, observer, hold):
     ``field`` (E,) and ``measured`` (E, n) are the values at the end of the step; ``bank``
     (:class:`BankState`) and ``state`` (:class:`EstimatorState`) change in place. Returns
     0, or (before touching any state) 1 if ``field`` or 2 if ``measured`` is not finite.
-    The five structures come as plain tuples (:func:`as_kernel_tuples`). ``observer.law`` :attr:`Law.MINMAX` or :attr:`Law.GRADIENT` only: :attr:`Law.HELD` runs in Python.
+    The five structures come as plain tuples (:func:`as_kernel_tuples`). ``observer.law`` :attr:`Law.MINMAX`
+    or :attr:`Law.GRADIENT` only: :attr:`Law.HELD` runs in Python.
     """
     bank, bank_params, state = BankState(*bank), BankParams(*bank_params), EstimatorState(*state)
     observer, hold = ObserverParams(*observer), HoldParams(*hold)

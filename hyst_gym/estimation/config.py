@@ -195,7 +195,8 @@ class EstimatorConfig:
             raise ValueError(f"{owner}: grid_size must be between {MIN_GRID_SIZE} and {MAX_GRID_SIZE}, "
                              f"got {self.grid_size!r}")
         if not isinstance(self.plant, (FirstOrderPlant, LumpedPlant)):
-            raise ValueError(f"{owner}: plant must be a FirstOrderPlant or LumpedPlant, got {type(self.plant).__name__}")
+            raise ValueError(f"{owner}: plant must be a FirstOrderPlant or LumpedPlant, "
+                             f"got {type(self.plant).__name__}")
         if not isinstance(self.hysteresis, HysteresisParams):
             raise ValueError(f"{owner}: hysteresis must be a HysteresisParams, got {type(self.hysteresis).__name__}")
         if isinstance(self.plant, FirstOrderPlant) and not self.plant.gain > 0:

@@ -29,9 +29,9 @@ import numpy as np
 
 from ..physics.linear_system import hold_and_ramp
 from ._kernels import (EstimatorState, HoldParams, Law, ObserverParams, as_kernel_tuples, estimator_step,
-                       minmax_batch, observer_step, pe_integrand_batch, refresh)
+                       observer_step, pe_integrand_batch, refresh)
 from .bank import ModelBank, _readonly
-from .config import EstimatorConfig, FirstOrderPlant
+from .config import EstimatorConfig
 
 
 def hold_matrices(state_matrix: np.ndarray, input_vector: np.ndarray, dt: float):
@@ -339,7 +339,8 @@ class AdaptiveEstimator:
             return np.flatnonzero(rows)
         rows = rows.astype(np.int64).ravel()
         if np.any(rows < 0) or np.any(rows >= self.n_systems):
-            raise ValueError(f"{type(self).__name__}.reset: indices must lie in [0, {self.n_systems}), got {rows.tolist()}")
+            raise ValueError(f"{type(self).__name__}.reset: indices must lie in [0, {self.n_systems}), "
+                             f"got {rows.tolist()}")
         return rows
 
     def _finite_batch(self, value, count, name):

@@ -30,8 +30,10 @@ floor is already small).
 binned by the largest ``|H|`` reached so far, of ``|dM/da|`` on the initial magnetization curve and on
 random slew-limited histories (minor loops inside a bound can exceed the initial curve's
 sensitivity at that bound). A field that starts at 0 under the slew limit has ``max |H| <=
-min(slew*t, field_limit)`` by step t, which is what makes the binning valid. That no history exceeds it is checked, not proven: :func:`sensitivity_table` reports the
-largest ratio of a second, independent set of histories to the envelope (``check_ratio``), and the envelope is multiplied by that ratio when it exceeds 1. The tests cross-check the finite-difference sensitivity against the estimator bank's
+min(slew*t, field_limit)`` by step t, which is what makes the binning valid. That no history exceeds it is
+checked, not proven: :func:`sensitivity_table` reports the largest ratio of a second, independent set of
+histories to the envelope (``check_ratio``), and the envelope is multiplied by that ratio when it exceeds 1.
+The tests cross-check the finite-difference sensitivity against the estimator bank's
 interpolated slope, and the Van Trees formula against Monte-Carlo of the exact posterior mean
 on a linear-Gaussian case, where the bound is attained.
 """
@@ -105,7 +107,8 @@ def random_admissible_fields(n_paths: int, steps: int, max_change: float, field_
 class SensitivityTable:
     """The largest ``|dM/da|`` (dimensionless) known for histories that kept ``|H| <= field`` (A/m), over
     the a range: ``envelope`` (running max of the initial curve and of random admissible histories,
-    binned by their largest ``|H|`` so far), ``rho`` (1/(A/m)^2) and ``phi0`` (at H = 0, any history) of the thermal term,
+    binned by their largest ``|H|`` so far), ``rho`` (1/(A/m)^2) and ``phi0`` (at H = 0, any history) of the
+    thermal term,
     ``curve_ratio`` (how far the histories exceed the initial curve alone, the largest ratio) and
     ``check_ratio``: the largest ratio of a *second, independent* set of histories to the envelope
     (<= 1 means the check found no history above it)."""

@@ -205,7 +205,7 @@ def frozen_integrals(grid, bank_values, theta_hat, reference, dt: float, delta_s
         frozen = frozen_estimate(grid, bank_values, theta_hat, delta_steps)
     rows, f_hat, beta = frozen
     if rows.shape != (starts, delta_steps + 1):
-        raise ValueError(f"frozen_integrals: frozen was computed for another trace or delta_steps")
+        raise ValueError("frozen_integrals: frozen was computed for another trace or delta_steps")
     weights = np.full(delta_steps + 1, dt)
     weights[[0, -1]] = 0.5 * dt  # trapezoid rule
     out = []

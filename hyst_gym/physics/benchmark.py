@@ -258,7 +258,8 @@ def time_hem_banks(field, eq6_ns_per_substep, eq6_ns_per_sample, report, repeats
                              **HEM_BENCH_PARAMS)
         constants = batch.constants()
         hem.simulate_shared(field[:3], batch.demagnetized(), constants, batch.kind)  # compile / load from cache
-        cpu, _, _ = _best_time(lambda: hem.simulate_shared(field, batch.demagnetized(), constants, batch.kind),
+        cpu, _, _ = _best_time(lambda batch=batch, constants=constants:
+                                hem.simulate_shared(field, batch.demagnetized(), constants, batch.kind),
                                repeats)
         ns = cpu / (field.size * batch.size) * 1e9
         out[density] = {"ns_per_model_update": ns, "nodes": batch.coercive_nodes,

@@ -7,8 +7,9 @@ from hyst_gym.physics.transducers import FirstOrderPlant as TruePlant
 from hyst_gym.physics.transducers import LumpedLinear
 
 
-def true_magnetization(field, a, params=HysteresisParams()):
+def true_magnetization(field, a, params=None):
     """M (A/m) of the true material; ``a`` scalar or one value per sample (drift)."""
+    params = HysteresisParams() if params is None else params
     a = np.broadcast_to(np.asarray(a, dtype=np.float64), field.shape)
     if np.all(a == a[0]):
         return simulate_magnetization(field, **{**params.__dict__, "a": float(a[0])})

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from hyst_gym.estimation import EstimatorConfig, GradientEstimator, LumpedPlant, MinMaxEstimator
+from hyst_gym.estimation import EstimatorConfig, LumpedPlant, MinMaxEstimator
 
 from estimation_helpers import run_estimator, true_magnetization, true_outputs
 

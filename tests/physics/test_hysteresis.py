@@ -43,7 +43,7 @@ def _integrate_form_5(turning_points, p, curve):
     for start, end in zip(turning_points[:-1], turning_points[1:]):
         delta = math.copysign(1.0, end - start)
 
-        def rhs(field, state):
+        def rhs(field, state, delta=delta):  # delta bound now: solve_ivp calls rhs within this leg only
             m = _compose(field, state[0], p, curve)
             man = float(anhysteretic_magnetization(field + p["alpha"] * m, p["a"], p["Ms"], curve)[0])
             gap = man - state[0]
@@ -315,8 +315,8 @@ def _integrate_legs(turning_points, slope, Ms):
     m, out = 0.0, [0.0]
     for h0, h1 in zip(turning_points[:-1], turning_points[1:]):
         delta = 1.0 if h1 > h0 else -1.0
-        sol = scipy.integrate.solve_ivp(lambda h, y: [slope(h, y[0], delta, h0)], (h0, h1), [m], method="DOP853",
-                                        rtol=1e-10, atol=1e-6 * Ms)
+        sol = scipy.integrate.solve_ivp(lambda h, y, delta=delta, h0=h0: [slope(h, y[0], delta, h0)], (h0, h1), [m],
+                                        method="DOP853", rtol=1e-10, atol=1e-6 * Ms)
         m = float(sol.y[0, -1])
         out.append(m)
     return np.array(out)
@@ -327,7 +327,8 @@ def test_small_loop_extension_agrees_with_an_independent_adaptive_integration(cu
     p = SOFT
     chi_r = 3.0
     turning = TURNING_POINTS / 4
-    field = np.concatenate([np.linspace(h0, h1, 41)[:-1] for h0, h1 in zip(turning[:-1], turning[1:])] + [[turning[-1]]])
+    legs = [np.linspace(h0, h1, 41)[:-1] for h0, h1 in zip(turning[:-1], turning[1:])]
+    field = np.concatenate(legs + [[turning[-1]]])
     m = simulate_magnetization(field, **p, anhysteretic=curve, chi_r=chi_r, max_field_step=5.0)
     reference = _small_loop_reference(turning, p, chi_r, curve)
     np.testing.assert_allclose(m[::40], reference, atol=2e-6 * p["Ms"])
@@ -407,7 +408,8 @@ def test_reversal_pinning_agrees_with_an_independent_adaptive_integration(curve)
     p = SOFT
     rayleigh_field = 2000.0
     turning = TURNING_POINTS / 4
-    field = np.concatenate([np.linspace(h0, h1, 41)[:-1] for h0, h1 in zip(turning[:-1], turning[1:])] + [[turning[-1]]])
+    legs = [np.linspace(h0, h1, 41)[:-1] for h0, h1 in zip(turning[:-1], turning[1:])]
+    field = np.concatenate(legs + [[turning[-1]]])
     m = simulate_magnetization(field, **p, anhysteretic=curve, rayleigh_field=rayleigh_field, max_field_step=5.0)
     np.testing.assert_allclose(m[::40], _reversal_reference(turning, p, rayleigh_field, curve), atol=2e-6 * p["Ms"])
     plain = simulate_magnetization(field, **p, anhysteretic=curve, max_field_step=5.0)

@@ -59,7 +59,7 @@ def scipy_solution(field, a, k, alpha, Ms, c):
             out[start + 1:stop + 1] = out[start]
         else:
             fields = field[start:stop + 1]
-            solution = solve_ivp(lambda h, m: [_dm_dh(h, m[0], direction, a, k, alpha, Ms, c)],
+            solution = solve_ivp(lambda h, m, direction=direction: [_dm_dh(h, m[0], direction, a, k, alpha, Ms, c)],
                                  (fields[0], fields[-1]), [out[start]], method="Radau",
                                  t_eval=fields, rtol=1e-10, atol=1e-6 * Ms)
             out[start:stop + 1] = solution.y[0]
