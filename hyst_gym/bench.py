@@ -32,8 +32,8 @@ import numpy as np
 
 #: (section title, module providing run_benchmark)
 SECTIONS = (
-    ("hysteresis bank", "hyst_gym.physics.benchmark"),
-    ("estimators", "hyst_gym.estimation.benchmark"),
+    ("hysteresis bank", "hyst_gym.physics.kernel_speed"),
+    ("estimators", "hyst_gym.estimation.estimator_speed"),
     ("environments", "hyst_gym.envs.benchmark"),
 )
 #: layer name (the ``--only`` choice) per module
