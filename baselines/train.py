@@ -157,6 +157,21 @@ def main(args) -> int:
     return 0
 
 
+def _new_model(cls, algo, env, seed, out, params, overrides):
+    """The algorithm, built with ``params``. Its constructor checks the values (SB3 asserts, e.g.,
+    ``n_steps * n_envs > 1``): a value that ``--hyperparams`` set and the constructor rejects is a
+    one-line ``ValueError`` naming the flag; with the defaults alone, a failure is a bug and propagates."""
+    try:
+        return cls(POLICIES[algo], env, seed=int(seed), device="cpu", verbose=0,
+                   tensorboard_log=str(out / "tb"), **copy.deepcopy(params))
+    except (AssertionError, ValueError, TypeError) as error:
+        env.close()
+        if not overrides:
+            raise
+        reason = " ".join(str(error).split()) or type(error).__name__
+        raise ValueError(f"--hyperparams {json.dumps(overrides)} rejected by {algo}: {reason}") from None
+
+
 def _latest_checkpoint(out: pathlib.Path):
     found = []
     for path in (out / "checkpoints").glob("model_*_steps.zip"):
@@ -266,22 +281,15 @@ def _last_curve_steps(out: pathlib.Path):
     return int(rows[-1]["env_steps"]) if rows else None
 
 
-def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=None, checkpoint_every=10_000,
-          eval_every=0, eval_episodes=8, hyperparams=None, resume=False, progress=True, scenario=None,
-          reward="dense"):
-    """Train and save; returns the path of ``model.zip``. See the module docstring.
-
-    ``n_stack`` None means :func:`default_n_stack` (8 frames; 1 for a recurrent policy);
-    ``reward`` names the training reward (:data:`baselines.rewards.REWARDS`). The learning
-    curve always scores the benchmark's metrics, whatever the reward."""
-    # every setting is checked before anything is written: a bad one leaves no output folder
+def _check_settings(algo, spec, timesteps, seed, n_envs, n_stack, checkpoint_every, eval_every, eval_episodes,
+                    hyperparams, reward) -> None:
+    """A ``ValueError`` naming the flag of the first bad setting of :func:`train`."""
     if algo not in ALGORITHMS:
         raise ValueError(f"--algo must be one of {ALGORITHMS}, got {algo!r}")
     if spec.env_id not in ENV_IDS:
         raise ValueError(f"--env {spec.env_id!r} is not a hyst-gym environment; expected one of {sorted(ENV_IDS)}")
     if reward not in REWARD_NAMES:
         raise ValueError(f"--reward must be one of {REWARD_NAMES}, got {reward!r}")
-    n_stack = default_n_stack(algo) if n_stack is None else n_stack
     for name, value in (("timesteps", timesteps), ("n-envs", n_envs), ("n-stack", n_stack)):
         _positive(name, value)
     for name, value in (("seed", seed), ("checkpoint-every", checkpoint_every), ("eval-every", eval_every)):
@@ -292,6 +300,20 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=None,
     if algo in RECURRENT_ALGORITHMS and n_stack != 1:
         raise ValueError(f"--n-stack must be 1 for {algo} (the LSTM keeps the history), got {n_stack}")
     check_hyperparams(algo, hyperparams or {})
+
+
+def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=None, checkpoint_every=10_000,
+          eval_every=0, eval_episodes=8, hyperparams=None, resume=False, progress=True, scenario=None,
+          reward="dense"):
+    """Train and save; returns the path of ``model.zip``. See the module docstring.
+
+    ``n_stack`` None means :func:`default_n_stack` (8 frames; 1 for a recurrent policy);
+    ``reward`` names the training reward (:data:`baselines.rewards.REWARDS`). The learning
+    curve always scores the benchmark's metrics, whatever the reward."""
+    # every setting is checked before anything is written: a bad one leaves no output folder
+    n_stack = default_n_stack(algo) if n_stack is None else n_stack
+    _check_settings(algo, spec, timesteps, seed, n_envs, n_stack, checkpoint_every, eval_every, eval_episodes,
+                    hyperparams, reward)
     out = pathlib.Path(out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} exists and is not a folder")
@@ -299,7 +321,6 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=None,
     import torch
 
     torch.set_num_threads(1)
-    out.mkdir(parents=True, exist_ok=True)
     wall_start = time.time()  # learning-curve rows report wall time since this call
     # deep copies: SB3 writes into policy_kwargs (SAC adds use_sde), which must reach neither
     # the module's defaults nor the recorded config
@@ -317,8 +338,6 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=None,
         if changed:
             raise ValueError(f"{out / 'config.json'}: --resume under other settings ({', '.join(changed)}) than the "
                              "run was started with; use another --out, or drop --resume to start afresh")
-    else:
-        (out / "learning_curve.csv").unlink(missing_ok=True)  # a fresh run: no rows of an earlier one
     env = make_sb3_vec_env(spec, n_envs, seed, n_stack, reward=reward)
     cls = algorithm_class(algo)
     if checkpoint is not None:
@@ -329,8 +348,11 @@ def train(algo, spec: EpisodeSpec, timesteps, seed, out, n_envs=8, n_stack=None,
     else:
         if resume:
             print(f"[train] --resume: no checkpoint in {out}, starting fresh")
-        model = cls(POLICIES[algo], env, seed=int(seed), device="cpu", verbose=0,
-                    tensorboard_log=str(out / "tb"), **copy.deepcopy(params))
+        model = _new_model(cls, algo, env, seed, out, params, hyperparams or {})
+    # the model is built (its constructor checks the hyperparameters' values): now write
+    out.mkdir(parents=True, exist_ok=True)
+    if checkpoint is None:
+        (out / "learning_curve.csv").unlink(missing_ok=True)  # a fresh run: no rows of an earlier one
     (out / "config.json").write_text(json.dumps(config, indent=2))
     remaining = int(timesteps) - int(model.num_timesteps)
     start_wall = time.time()

@@ -98,3 +98,17 @@ def test_bad_settings_leave_no_output_folder(tmp_path, capsys):
     assert "n_steps" in errors[1].split("accepted:")[1]
     assert "unknown policy_kwargs key(s) width for ppo's MlpPolicy; accepted: " in errors[2]
     assert not out.exists()
+
+
+def test_hyperparameter_values_the_algorithm_rejects_are_one_line_errors(tmp_path, capsys):
+    out = tmp_path / "run"
+    common = ["--timesteps", "64", "--out", str(out), "--no-progress"]
+    assert main(["train", "--algo", "ppo", "--hyperparams", '{"n_steps": -1}', *common]) == 2
+    assert main(["train", "--algo", "sac", "--hyperparams", '{"learning_rate": "fast"}', *common]) == 2
+    errors = capsys.readouterr().err.strip().splitlines()
+    assert len(errors) == 2 and "Traceback" not in "".join(errors)
+    # SB3's own reason follows the flag and the values that were passed
+    assert errors[0].startswith('hyst-gym train: error: --hyperparams {"n_steps": -1} rejected by ppo: ')
+    assert "n_steps=-1" in errors[0]
+    assert errors[1].startswith('hyst-gym train: error: --hyperparams {"learning_rate": "fast"} rejected by sac: ')
+    assert not out.exists()  # rejected before anything was written
