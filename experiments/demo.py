@@ -132,8 +132,7 @@ def benchmark_stage(out: pathlib.Path, episodes: int, train_ppo: bool, ppo_steps
     from baselines.stats import summarize
     from baselines.survival import censor, kaplan_meier
 
-    if episodes <= 0:
-        raise ValueError(f"--episodes must be > 0, got {episodes}")
+    check_settings(episodes, ppo_steps)
     scenario = SCENARIOS["paper"]
     agents = _demo_agents(scenario, train_ppo, ppo_steps, out)
     rows, settle_by_agent = [], {}
@@ -191,8 +190,20 @@ def _convergence_floor(scenario) -> float:
     return first_passage(time, bound, 1e-3 * a_true)
 
 
+def check_settings(episodes: int, ppo_steps: int) -> None:
+    """A ``ValueError`` naming the flag for a count the benchmark stage cannot use."""
+    from baselines.scenarios import HELDOUT_SEEDS
+
+    if not 1 <= episodes <= len(HELDOUT_SEEDS):
+        raise ValueError(f"--episodes must be in 1..{len(HELDOUT_SEEDS)} (the held-out draws), got {episodes}")
+    if ppo_steps <= 0:
+        raise ValueError(f"--ppo-steps must be > 0, got {ppo_steps}")
+
+
 def main(args) -> int:
     out = pathlib.Path(args.out)
+    if not getattr(args, "physics_only", False):
+        check_settings(args.episodes, args.ppo_steps)  # before any stage runs or anything is written
     out.mkdir(parents=True, exist_ok=True)
     physics_stage(out)
     if getattr(args, "physics_only", False):

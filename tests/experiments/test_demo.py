@@ -2,6 +2,7 @@
 
 import re
 
+from baselines.scenarios import HELDOUT_SEEDS
 from hyst_gym import cli
 
 
@@ -15,3 +16,17 @@ def test_demo_writes_its_table_and_figures_and_the_ramp_is_slower_than_the_floor
     assert 2.0 < floor < 2.5
     assert ramp > floor + 1.0  # the paper's ramp spends seconds below the peak sensitivity
     assert "[table] wrote" in capsys.readouterr().out
+
+
+def test_bad_counts_are_one_line_errors_before_any_stage_runs(tmp_path, capsys):
+    n_draws = len(HELDOUT_SEEDS)
+    for flag, value in (("--episodes", "0"), ("--episodes", str(n_draws + 1)), ("--ppo-steps", "-5")):
+        out = tmp_path / f"demo{flag}{value}"
+        assert cli.main(["demo", "--out", str(out), flag, value]) == 2
+        assert not out.exists()  # no stage ran: not even the output folder was made
+    captured = capsys.readouterr()
+    errors = captured.err.strip().splitlines()
+    assert captured.out == ""
+    episodes = f"hyst-gym demo: error: --episodes must be in 1..{n_draws} (the held-out draws), got"
+    assert errors == [f"{episodes} 0", f"{episodes} {n_draws + 1}",
+                      "hyst-gym demo: error: --ppo-steps must be > 0, got -5"]
