@@ -32,7 +32,8 @@ G. Bertotti, *Hysteresis in Magnetism*, Academic Press 1998, ch. 8, whose heavy 
 saturation slowly; or ``"student_t2"``, Student's t density with two degrees of freedom and scale
 ``b`` (relay part ``x/sqrt(2 + x^2)``, ``x = p/b``), whose tails (``|HI|^-3``) lie between the two
 and whose distribution function costs one square root and one division (the cheapest of the three).
-And the reversible part may saturate (:data:`SATURATING_REVERSIBLE`).
+And the reversible part may saturate (:data:`SATURATING_REVERSIBLE`), and the coercive density may hold a
+population of zero coercivity besides the lognormal one (:data:`ANHYSTERETIC_POPULATION`).
 
 The model is a Preisach model with the density of these two coordinates, so it has return-point
 memory (wiping out) and congruent minor loops between the same two fields (Mayergoyz's
@@ -63,6 +64,14 @@ from .anhysteretic import tanh_expm1
 #: wall bowing and rotation saturate with the material; this option bounds the reversible part by the
 #: Ising form of the anhysteretic curve (2), as the reversible part c*Man of the domain-wall model (5):
 SATURATING_REVERSIBLE = "M_rev = (h_s/eta)*tanh(H/h_s): slope 1/eta at low field, bounded by h_s/eta"
+
+#: The anhysteretic population, an option (``anhysteretic_magnetization`` > 0): the coercive density is the
+#: lognormal one plus a point mass at Hc = 0, sites with negligible pinning (walls that move freely between
+#: pinning sites, rotation). The relays of that population have no hysteresis, their play output is H itself,
+#: so their integral over the interaction field is the HEM's anhysteretic curve (the Hc -> 0 limit of the
+#: kernel; Smith et al. 2006) with a field scale of its own, b_A. A reversible part that saturates with the
+#: interaction density's shape, beside the pinned, hysteretic relays:
+ANHYSTERETIC_POPULATION = "M_an = M_A*(2*F(H; b_A) - 1), F the interaction density's distribution, scale b_A"
 
 #: Codes of the interaction densities in the compiled kernels.
 NORMAL = 0
@@ -111,6 +120,12 @@ class HEMParams:
     reversible_saturation : float
         ``h_s``, A/m (>= 0). 0, the default, is the HEM's linear reversible part ``H/eta``; above 0 the
         reversible part saturates, ``(h_s/eta)*tanh(H/h_s)`` (:data:`SATURATING_REVERSIBLE`).
+    anhysteretic_magnetization : float
+        ``M_A``, A/m (>= 0): the magnetization of the population of zero coercivity
+        (:data:`ANHYSTERETIC_POPULATION`). 0, the default, is the HEM's lognormal coercive density alone.
+    anhysteretic_scale : float
+        ``b_A``, A/m (> 0): the interaction scale of that population (its standard deviation, half-width or
+        scale as for ``interaction_scale``); unused while ``anhysteretic_magnetization`` is 0.
     """
 
     relay_magnetization: float = 3.0e5
@@ -121,10 +136,14 @@ class HEMParams:
     interaction_density: str = "normal"
     coercive_nodes: int = DEFAULT_COERCIVE_NODES
     reversible_saturation: float = 0.0
+    anhysteretic_magnetization: float = 0.0
+    anhysteretic_scale: float = 1.0
 
     def __post_init__(self):
         _check_saturation(self.reversible_saturation, "HEMParams")
-        object.__setattr__(self, "reversible_saturation", float(self.reversible_saturation))
+        _check_anhysteretic(self.anhysteretic_magnetization, self.anhysteretic_scale, "HEMParams")
+        for name in ("reversible_saturation",) + _ANHYSTERETIC_NAMES:
+            object.__setattr__(self, name, float(getattr(self, name)))
         for name in _PARAMETER_NAMES:
             object.__setattr__(self, name, float(getattr(self, name)))
         validate_hem_parameters(*(getattr(self, n) for n in _PARAMETER_NAMES), owner="HEMParams")
@@ -142,6 +161,19 @@ def _check_saturation(values, owner):
     values = np.asarray(values, dtype=np.float64)
     if not np.all(np.isfinite(values) & (values >= 0.0)):
         raise ValueError(f"{owner}: reversible_saturation must be finite and >= 0 A/m, got {values.ravel()[:1]}")
+
+
+_ANHYSTERETIC_NAMES = ("anhysteretic_magnetization", "anhysteretic_scale")
+
+
+def _check_anhysteretic(magnetization, scale, owner):
+    magnetization = np.asarray(magnetization, dtype=np.float64)
+    scale = np.asarray(scale, dtype=np.float64)
+    if not np.all(np.isfinite(magnetization) & (magnetization >= 0.0)):
+        raise ValueError(f"{owner}: anhysteretic_magnetization must be finite and >= 0 A/m, "
+                         f"got {magnetization.ravel()[:1]}")
+    if not np.all(np.isfinite(scale) & (scale > 0.0)):
+        raise ValueError(f"{owner}: anhysteretic_scale must be finite and > 0 A/m, got {scale.ravel()[:1]}")
 
 
 def _check_nodes(nodes, owner):
@@ -189,6 +221,8 @@ class HEMConstants(NamedTuple):
     inverse_scale: np.ndarray  # (B,) 1/(sqrt(2) b) (normal) or 1/b (Lorentzian), 1/(A/m)
     reversible_susceptibility: np.ndarray  # (B,) 1/eta, dimensionless
     reversible_saturation: np.ndarray  # (B,) h_s, A/m; 0: linear reversible part
+    anhysteretic_weight: np.ndarray  # (B,) M_A, A/m; 0: no population of zero coercivity
+    anhysteretic_inverse_scale: np.ndarray  # (B,) as inverse_scale, for b_A, 1/(A/m)
 
 
 class HEMState(NamedTuple):
@@ -212,10 +246,13 @@ class HEMBatch:
     interaction_density: str = "normal"
     coercive_nodes: int = DEFAULT_COERCIVE_NODES
     reversible_saturation: np.ndarray | float = 0.0
+    anhysteretic_magnetization: np.ndarray | float = 0.0
+    anhysteretic_scale: np.ndarray | float = 1.0
 
     def __post_init__(self):
         saturation = np.asarray(self.reversible_saturation, dtype=np.float64)
         _check_saturation(saturation, "HEMBatch")
+        _check_anhysteretic(self.anhysteretic_magnetization, self.anhysteretic_scale, "HEMBatch")
         arrays = np.broadcast_arrays(*(np.asarray(getattr(self, n), dtype=np.float64) for n in _PARAMETER_NAMES))
         if arrays[0].ndim != 1:
             raise ValueError(f"HEMBatch: parameters must be 1-D arrays, got shape {arrays[0].shape}")
@@ -228,9 +265,10 @@ class HEMBatch:
             object.__setattr__(self, name, array)
         object.__setattr__(self, "interaction_density", str(self.interaction_density).lower())
         object.__setattr__(self, "coercive_nodes", int(self.coercive_nodes))
-        saturation = np.array(np.broadcast_to(saturation, arrays[0].shape), dtype=np.float64)
-        saturation.setflags(write=False)
-        object.__setattr__(self, "reversible_saturation", saturation)
+        for name in ("reversible_saturation",) + _ANHYSTERETIC_NAMES:
+            array = np.array(np.broadcast_to(np.asarray(getattr(self, name), dtype=np.float64), arrays[0].shape))
+            array.setflags(write=False)
+            object.__setattr__(self, name, array)
 
     @property
     def size(self) -> int:
@@ -245,7 +283,8 @@ class HEMBatch:
     def from_params(cls, params: HEMParams, size: int = 1) -> "HEMBatch":
         one = np.ones(int(size))
         return cls(*(getattr(params, n) * one for n in _PARAMETER_NAMES), params.interaction_density,
-                   params.coercive_nodes, params.reversible_saturation * one)
+                   params.coercive_nodes, params.reversible_saturation * one,
+                   params.anhysteretic_magnetization * one, params.anhysteretic_scale * one)
 
     @classmethod
     def stack(cls, params_list) -> "HEMBatch":
@@ -257,15 +296,18 @@ class HEMBatch:
             raise ValueError(f"HEMBatch.stack: mixed densities or node counts {sorted(shared)}")
         density, nodes = shared.pop()
         return cls(*(np.array([getattr(p, n) for p in params_list]) for n in _PARAMETER_NAMES), density, nodes,
-                   np.array([p.reversible_saturation for p in params_list]))
+                   *(np.array([getattr(p, n) for p in params_list]) for n in ("reversible_saturation",)
+                     + _ANHYSTERETIC_NAMES))
 
     def constants(self) -> HEMConstants:
         quantiles, weights = coercive_rule(self.coercive_nodes)
         coercive = self.coercive_median[None, :] * np.exp(quantiles[:, None] * self.coercive_spread[None, :])
-        scale = self.interaction_scale * (math.sqrt(2.0) if self.kind == NORMAL else 1.0)
+        factor = math.sqrt(2.0) if self.kind == NORMAL else 1.0
         return HEMConstants(np.ascontiguousarray(coercive),
                             np.ascontiguousarray(weights[:, None] * self.relay_magnetization[None, :]),
-                            1.0 / scale, self.reversible_susceptibility.copy(), self.reversible_saturation.copy())
+                            1.0 / (factor * self.interaction_scale), self.reversible_susceptibility.copy(),
+                            self.reversible_saturation.copy(), self.anhysteretic_magnetization.copy(),
+                            1.0 / (factor * self.anhysteretic_scale))
 
     def demagnetized(self) -> HEMState:
         """The ideally demagnetized state: every play output 0, M = 0 at H = 0."""
@@ -341,6 +383,16 @@ def reversible_magnetization(field, susceptibility, saturation):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def stateless_magnetization(field, constants, b, kind):
+    """The parts of model ``b`` that carry no state (A/m): the reversible part and the anhysteretic
+    population (:data:`ANHYSTERETIC_POPULATION`; its weight 0 adds exactly 0)."""
+    reversible = reversible_magnetization(field, constants.reversible_susceptibility[b],
+                                          constants.reversible_saturation[b])
+    return reversible + constants.anhysteretic_weight[b] * relay_share(
+        field, constants.anhysteretic_inverse_scale[b], kind)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _advance_node(play, coercive, weight, inverse_scale, field, kind):
     """One node of one model moved to ``field``: (new play output, its relay magnetization), A/m."""
     low = field - coercive
@@ -358,8 +410,7 @@ def advance_shared(state, field, constants, kind, magnetization):
     gives the same numbers bit for bit alone and in any bank."""
     play = state.play
     for b in range(play.shape[1]):
-        magnetization[b] = reversible_magnetization(field, constants.reversible_susceptibility[b],
-                                                    constants.reversible_saturation[b])
+        magnetization[b] = stateless_magnetization(field, constants, b, kind)
     for i in range(play.shape[0]):
         for b in range(play.shape[1]):
             play[i, b], part = _advance_node(play[i, b], constants.coercive[i, b], constants.relay_weight[i, b],
@@ -372,8 +423,7 @@ def advance_each(state, fields, constants, kind, magnetization):
     """Every model moved to its own field ``fields[b]`` (A/m); writes M (A/m) into ``magnetization``."""
     play = state.play
     for b in range(play.shape[1]):
-        magnetization[b] = reversible_magnetization(fields[b], constants.reversible_susceptibility[b],
-                                                    constants.reversible_saturation[b])
+        magnetization[b] = stateless_magnetization(fields[b], constants, b, kind)
     for i in range(play.shape[0]):
         for b in range(play.shape[1]):
             play[i, b], part = _advance_node(play[i, b], constants.coercive[i, b], constants.relay_weight[i, b],
@@ -402,8 +452,10 @@ def state_with_magnetization(batch: HEMBatch, field: float, magnetization, itera
     then starts within 1.5e-7 of M_R of ``magnetization``."""
     constants = batch.constants()
     target = np.broadcast_to(np.asarray(magnetization, dtype=np.float64), (batch.size,))
-    relay_target = target - np.array([reversible_magnetization(field, chi, h) for chi, h in
-                                      zip(constants.reversible_susceptibility, constants.reversible_saturation)])
+    stateless = np.array([reversible_magnetization(field, chi, h) for chi, h in
+                          zip(constants.reversible_susceptibility, constants.reversible_saturation)])
+    stateless += constants.anhysteretic_weight * _share_numpy(field * constants.anhysteretic_inverse_scale, batch.kind)
+    relay_target = target - stateless
     low = np.full(batch.size, field - constants.coercive.max(axis=0))
     high = np.full(batch.size, field + constants.coercive.max(axis=0))
 
@@ -458,8 +510,9 @@ def simulate_hem(field, **params) -> np.ndarray:
 
 
 __all__ = [
-    "DEFAULT_COERCIVE_NODES", "SATURATING_REVERSIBLE", "reversible_magnetization", "HEMBatch", "HEMConstants", "HEMParams", "HEMState", "INTERACTION_DENSITIES",
-    "LORENTZIAN", "NORMAL", "STUDENT_T2", "advance_each", "advance_shared", "atan_inline", "coercive_rule", "erf_inline", "interaction_density_code",
-    "relay_share", "simulate_hem", "simulate_hem_batch", "simulate_shared", "state_with_magnetization",
-    "validate_hem_parameters",
+    "ANHYSTERETIC_POPULATION", "DEFAULT_COERCIVE_NODES", "HEMBatch", "HEMConstants", "HEMParams", "HEMState",
+    "INTERACTION_DENSITIES", "LORENTZIAN", "NORMAL", "SATURATING_REVERSIBLE", "STUDENT_T2", "advance_each",
+    "advance_shared", "atan_inline", "coercive_rule", "erf_inline", "interaction_density_code", "relay_share",
+    "reversible_magnetization", "simulate_hem", "simulate_hem_batch", "simulate_shared", "stateless_magnetization",
+    "state_with_magnetization", "validate_hem_parameters",
 ]

@@ -186,3 +186,43 @@ def test_saturating_reversible_part_changes_only_the_reversible_part():
     # far out, the reversible part is bounded by chi*h_s instead of growing with H
     far = simulate_hem(np.array([0.0, 1e6]), reversible_saturation=25.0, **PARAMS)[-1]
     assert far == pytest.approx(PARAMS["relay_magnetization"] + chi * 25.0, rel=1e-9)
+
+
+@pytest.mark.parametrize("density", ["normal", "lorentzian", "student_t2"])
+def test_anhysteretic_population_adds_the_zero_coercivity_limit_and_nothing_else(density):
+    field = np.concatenate([np.linspace(0, 90.0, 40), np.linspace(90.0, -30.0, 60), np.linspace(-30.0, 50.0, 40)])
+    params = dict(PARAMS, interaction_density=density)
+    plain = simulate_hem(field, **params)
+    # weight 0 (the default) is the plain model bit for bit, whatever the scale
+    np.testing.assert_array_equal(simulate_hem(field, anhysteretic_scale=7.0, **params), plain)
+    with_population = simulate_hem(field, anhysteretic_magnetization=1.0e5, anhysteretic_scale=15.0, **params)
+    # independently: the population's distribution function from scipy.stats, M_A*(2F(H) - 1)
+    law = {"normal": stats.norm, "lorentzian": stats.cauchy,
+           "student_t2": lambda scale: stats.t(df=2, scale=scale)}[density](scale=15.0)
+    np.testing.assert_allclose(with_population - plain, 1.0e5 * (2 * law.cdf(field) - 1), rtol=0, atol=1.0)
+    # it is the Hc -> 0 limit of a hysteretic population: a second HEM with a tiny coercive field
+    limit = simulate_hem(field, relay_magnetization=1.0e5, reversible_susceptibility=0.0, coercive_median=1e-6,
+                         coercive_spread=0.05, interaction_scale=15.0, interaction_density=density, coercive_nodes=1)
+    np.testing.assert_allclose(with_population - plain, limit, rtol=0, atol=1.0)
+    # still a Preisach model: return-point memory holds with the population
+    excursion = np.array([0.0, 80.0, 10.0, 40.0, 25.0, 40.0, 10.0])
+    m = simulate_hem(excursion, anhysteretic_magnetization=1.0e5, anhysteretic_scale=15.0, **params)
+    assert m[-1] == pytest.approx(m[2], abs=1e-9 * PARAMS["relay_magnetization"])
+
+
+def test_anhysteretic_population_in_banks_and_starts():
+    params = [HEMParams(**PARAMS, anhysteretic_magnetization=w, anhysteretic_scale=s) for w, s in ((0.0, 1.0),
+                                                                                                    (5e4, 10.0))]
+    batch = HEMBatch.stack(params)
+    field = np.array([0.0, 30.0, -12.0, 4.0])
+    bank = simulate_hem_batch(field, batch)
+    for j, p in enumerate(params):
+        np.testing.assert_array_equal(bank[:, j], simulate_hem_batch(field, HEMBatch.from_params(p))[:, 0])
+    target = np.array([9e4, -3e4])
+    state = state_with_magnetization(batch, 5.0, target)
+    np.testing.assert_allclose(simulate_hem_batch(np.array([5.0]), batch, state)[0], target, rtol=0,
+                               atol=1e-6 * PARAMS["relay_magnetization"])
+    with pytest.raises(ValueError, match="anhysteretic_magnetization"):
+        HEMParams(anhysteretic_magnetization=-1.0)
+    with pytest.raises(ValueError, match="anhysteretic_scale"):
+        HEMParams(anhysteretic_scale=0.0)
