@@ -63,6 +63,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.io
 from scipy.optimize import least_squares, nnls
+from scipy.special import erf
 
 from hyst_gym.diagnose import Recording, diagnose, write_json, write_plots
 from hyst_gym.diagnose.core import loop_informed_starts
@@ -340,24 +341,36 @@ def batched_least_squares(model, weights, fit_mask, starts, iterations=80, prune
 
 # ------------------------------------------------------------------ the homogenized energy model
 
-#: HEM variants: the interaction density of the relay kernel (``hyst_gym.physics.hem``, 16 coercive nodes)
-#: and whether the reversible part saturates (``hem.SATURATING_REVERSIBLE``; added after the first three
-#: had been run on the shipped sets, see docs/results/real-loops.md).
-HEM_VARIANTS = (("normal", False), ("lorentzian", False), ("student_t2", False), ("normal", True))
+#: HEM variants: the interaction density of the relay kernel (``hyst_gym.physics.hem``, 16 coercive nodes),
+#: whether the reversible part saturates (``hem.SATURATING_REVERSIBLE``; added after the first three had been
+#: run on the shipped sets) and whether the coercive density holds a population of zero coercivity
+#: (``hem.ANHYSTERETIC_POPULATION``; the last three, added after the validation-loop rule had been fixed and
+#: run; see docs/results/real-loops.md).
+HEM_VARIANTS = (("normal", False, False), ("lorentzian", False, False), ("student_t2", False, False),
+                ("normal", True, False), ("normal", True, True), ("lorentzian", True, True), ("student_t2", True, True))
 HEM_NODES = 16
 #: Bounds of the nonlinear HEM parameters: fields in units of the fitted loop's peak field, the spread of
 #: ln Hc dimensionless.
 HEM_BOUNDS = {"coercive_median": (1e-3, 2.0), "coercive_spread": (0.05, 3.0), "interaction_scale": (1e-3, 5.0),
-              "reversible_saturation": (1e-2, 10.0)}
+              "reversible_saturation": (1e-2, 10.0), "anhysteretic_scale": (1e-3, 5.0)}
 #: Starts of the HEM fit (same units); every start is simulated as one bank, the best HEM_REFINED refined.
 HEM_STARTS = [dict(coercive_median=hc, coercive_spread=sigma, interaction_scale=b)
               for hc in (0.05, 0.15, 0.4) for sigma in (0.4, 1.0) for b in (0.05, 0.2, 0.6)]
-HEM_SATURATION_STARTS = (0.3, 1.0)
+HEM_OPTION_STARTS = {"reversible_saturation": (0.3, 1.0), "anhysteretic_scale": (0.05, 0.2)}
 HEM_REFINED = 3
+#: The linear parts of a HEM fit: the reversible part's chi, the relays' M_R and the anhysteretic population's M_A.
+HEM_LINEAR = ("reversible_susceptibility", "relay_magnetization", "anhysteretic_magnetization")
 
 
-def hem_variant_name(density, saturating):
-    return f"hem {density}" + (" + saturating reversible" if saturating else "")
+def hem_variant_name(density, saturating, anhysteretic=False):
+    return (f"hem {density}" + (" + saturating reversible" if saturating else "")
+            + (" + anhysteretic population" if anhysteretic else ""))
+
+
+def hem_nonlinear_names(saturating, anhysteretic):
+    return (("coercive_median", "coercive_spread", "interaction_scale") + (("reversible_saturation",) if saturating
+                                                                          else ())
+            + (("anhysteretic_scale",) if anhysteretic else ()))
 
 
 @dataclass(frozen=True)
@@ -372,56 +385,79 @@ class HEMFit:
         return simulate_hem_batch(np.concatenate([[0.0], field]), HEMBatch.from_params(self.params))[1:, 0]
 
 
-def _relay_columns(field, density, nonlinear):
-    """The HEM's two linear parts along ``field`` for each row of ``nonlinear`` (coercive median, spread,
-    interaction scale[, reversible saturation]): M = chi*g(H) + M_R*R(H); returns g (H itself, or
-    h_s*tanh(H/h_s)) and R with M_R = 1, each of shape (T, rows)."""
+def _share(scaled, density):
+    """2F - 1 of the interaction density at ``scaled`` = H/b (hem.ANHYSTERETIC_POPULATION)."""
+    if density == "normal":
+        return erf(scaled / np.sqrt(2.0))
+    if density == "student_t2":
+        return scaled / np.sqrt(2.0 + scaled * scaled)
+    return (2.0 / np.pi) * np.arctan(scaled)
+
+
+def _relay_columns(field, density, nonlinear, names):
+    """The HEM's linear parts along ``field`` for each row of ``nonlinear`` (values of ``names``): M =
+    chi*g(H) + M_R*R(H) [+ M_A*A(H)]; returns the columns g (H itself, or h_s*tanh(H/h_s)), R (the relays
+    with M_R = 1) and, with the anhysteretic population, A = 2F(H; b_A) - 1, each of shape (T, rows)."""
     nonlinear = np.atleast_2d(nonlinear)
-    batch = HEMBatch(1.0, 0.0, nonlinear[:, 0], nonlinear[:, 1], nonlinear[:, 2], density, HEM_NODES)
-    if nonlinear.shape[1] > 3:
-        saturation = nonlinear[:, 3][None, :]
+    value = dict(zip(names, nonlinear.T))
+    batch = HEMBatch(1.0, 0.0, value["coercive_median"], value["coercive_spread"], value["interaction_scale"],
+                     density, HEM_NODES)
+    if "reversible_saturation" in value:
+        saturation = value["reversible_saturation"][None, :]
         reversible = saturation * np.tanh(field[:, None] / saturation)
     else:
         reversible = np.repeat(field[:, None], nonlinear.shape[0], axis=1)
-    return reversible, simulate_hem_batch(np.concatenate([[0.0], field]), batch)[1:]
+    columns = [reversible, simulate_hem_batch(np.concatenate([[0.0], field]), batch)[1:]]
+    if "anhysteretic_scale" in value:
+        columns.append(_share(field[:, None] / value["anhysteretic_scale"][None, :], density))
+    return columns
 
 
 def _linear_parts(columns, measured, mask):
-    """(chi, M_R) >= 0 by least squares on ``mask`` for each pair of columns (g, R), and the residuals."""
-    reversible, relay = columns
+    """The linear parts >= 0 (HEM_LINEAR order) by least squares on ``mask`` for each row of the columns, and
+    the residuals, shape (T, rows)."""
     out = []
-    for j in range(relay.shape[1]):
-        design = np.column_stack([reversible[mask, j], relay[mask, j]])
-        coefficients, _ = nnls(design, measured[mask])
-        out.append(coefficients)
+    for j in range(columns[0].shape[1]):
+        design = np.column_stack([c[mask, j] for c in columns])
+        scale = np.max(np.abs(design), axis=0) + 1e-300  # columns of A/m and of 1: equilibrated for nnls
+        coefficients, _ = nnls(design / scale, measured[mask])
+        out.append(coefficients / scale)
     coefficients = np.array(out)
-    residuals = coefficients[:, :1].T * reversible + coefficients[:, 1:].T * relay - measured[:, None]
+    residuals = sum(coefficients[:, i][None, :] * c for i, c in enumerate(columns)) - measured[:, None]
     return coefficients, residuals
 
 
-def fit_hem(rec, density, fit_mask, saturating=False) -> HEMFit:
-    """The HEM fitted to a recording's magnetization on ``fit_mask``: chi and M_R, which enter linearly,
+def fit_hem(rec, density, fit_mask, saturating=False, anhysteretic=False) -> HEMFit:
+    """The HEM fitted to a recording's magnetization on ``fit_mask``: chi, M_R (and M_A), which enter linearly,
     are solved by non-negative least squares inside every evaluation (variable projection); the three
-    (four with the saturating reversible part) nonlinear parameters by ``least_squares`` in log
-    coordinates from the best starts of HEM_STARTS, each Jacobian one bank of models."""
+    nonlinear parameters (one more each for the saturating reversible part and the anhysteretic population)
+    by ``least_squares`` in log coordinates from the best starts of HEM_STARTS, each Jacobian one bank. With
+    the anhysteretic population, the fit without it (the nested model, M_A = 0) is made first and refined
+    from too, so that the population can only lower the sum of squares."""
     h_max = float(np.max(np.abs(rec.field)))
-    names = ("coercive_median", "coercive_spread", "interaction_scale") + (("reversible_saturation",)
-                                                                           if saturating else ())
+    names = hem_nonlinear_names(saturating, anhysteretic)
     unit = np.array([1.0 if n == "coercive_spread" else h_max for n in names])
     lower = np.log(np.array([HEM_BOUNDS[n][0] for n in names]) * unit)
     upper = np.log(np.array([HEM_BOUNDS[n][1] for n in names]) * unit)
     field, measured = rec.field, rec.magnetization
 
     def residual_rows(zs):
-        _, residuals = _linear_parts(_relay_columns(field, density, np.exp(zs)), measured, fit_mask)
+        _, residuals = _linear_parts(_relay_columns(field, density, np.exp(zs), names), measured, fit_mask)
         return residuals[fit_mask].T
 
-    starts = [dict(start, reversible_saturation=h) for start in HEM_STARTS
-              for h in (HEM_SATURATION_STARTS if saturating else (None,))]
+    starts = [dict(start) for start in HEM_STARTS]
+    for option, values in HEM_OPTION_STARTS.items():
+        if option in names:
+            starts = [dict(start, **{option: v}) for start in starts for v in values]
     starts = np.log(np.array([[start[n] for n in names] for start in starts]) * unit)
     sse = np.einsum("ij,ij->i", *(2 * [residual_rows(starts)]))
+    refined = starts[np.argsort(sse)[:HEM_REFINED]]
+    if anhysteretic:
+        nested = fit_hem(rec, density, fit_mask, saturating, False).params
+        refined = np.vstack([refined] + [np.log([getattr(nested, n) for n in names[:-1]] + [b * h_max])
+                                         for b in HEM_OPTION_STARTS["anhysteretic_scale"]])
     best_z, best_sse = None, np.inf
-    for z0 in starts[np.argsort(sse)[:HEM_REFINED]]:
+    for z0 in refined:
         def jacobian(z):
             step = 1e-6 * np.maximum(1.0, np.abs(z))
             rows = residual_rows(np.vstack([z, z + np.diag(step)]))
@@ -432,26 +468,27 @@ def fit_hem(rec, density, fit_mask, saturating=False) -> HEMFit:
         if 2 * solution.cost < best_sse:
             best_z, best_sse = solution.x, 2 * solution.cost
     nonlinear = np.exp(best_z)
-    (chi, relay_magnetization), = _linear_parts(_relay_columns(field, density, nonlinear), measured, fit_mask)[0]
-    params = HEMParams(max(relay_magnetization, 1e-9 * float(np.ptp(measured))), chi, *nonlinear[:3], density,
-                       HEM_NODES, float(nonlinear[3]) if saturating else 0.0)
-    return HEMFit(params, float(best_sse))
+    linear = _linear_parts(_relay_columns(field, density, nonlinear, names), measured, fit_mask)[0][0]
+    values = dict(zip(names, (float(v) for v in nonlinear)), **dict(zip(HEM_LINEAR, (float(v) for v in linear))))
+    values["relay_magnetization"] = max(values["relay_magnetization"], 1e-9 * float(np.ptp(measured)))
+    return HEMFit(HEMParams(interaction_density=density, coercive_nodes=HEM_NODES, **values), float(best_sse))
 
 
 def hem_row(stem, variant, rec, fit_mask, loops, order, materials):
-    """The row of one HEM variant (density, saturating) in the hold-out table (the domain-wall rows' keys)."""
-    density, saturating = variant
+    """The row of one HEM variant (density, saturating, anhysteretic) in the hold-out table (the domain-wall
+    rows' keys)."""
+    density, saturating, anhysteretic = variant
     started = time.perf_counter()
-    fit = fit_hem(rec, density, fit_mask, saturating)
+    fit = fit_hem(rec, density, fit_mask, saturating, anhysteretic)
     seconds = time.perf_counter() - started
-    names = ("relay_magnetization", "reversible_susceptibility", "coercive_median", "coercive_spread",
-             "interaction_scale") + (("reversible_saturation",) if saturating else ())
+    names = ("relay_magnetization", "reversible_susceptibility") + hem_nonlinear_names(saturating, anhysteretic) + (
+        ("anhysteretic_magnetization",) if anhysteretic else ())
     params = {n: getattr(fit.params, n) for n in names}
     h_max = float(np.max(np.abs(rec.field)))
     unit = {n: 1.0 if n == "coercive_spread" else h_max for n in HEM_BOUNDS}
     at_bound = [n for n, (lo, hi) in HEM_BOUNDS.items() if n in params
                 and min(abs(np.log(params[n] / (lo * unit[n]))), abs(np.log(hi * unit[n] / params[n]))) < 1e-3]
-    row = {"material": materials[stem], "curve": None, "variant": hem_variant_name(density, saturating),
+    row = {"material": materials[stem], "curve": None, "variant": hem_variant_name(*variant),
            "fit_seconds": seconds, "params": params, "uncertainties": {}, "at_bound": at_bound,
            "prediction_spread": None,
            "nrmse_B": {f"{np.max(np.abs(loops[j][0])):.3g} A/m":

@@ -35,22 +35,35 @@ def test_hem_fit_recovers_a_known_model_and_predicts_its_small_loops():
         assert real_loops.nrmse_of_b(other, m, H.size, 2 * H.size) < 0.01
 
 
-def _row(variant, segment, *nrmse):
-    return {"variant": variant, "selection_segment_rmse_A_per_m": segment,
-            "nrmse_B": {f"{80 / (i + 1):.3g} A/m": v for i, v in enumerate(nrmse)}}
+def _row(variant, *nrmse):
+    return {"variant": variant, "nrmse_B": {f"{80 / (i + 1):.3g} A/m": v for i, v in enumerate(nrmse)}}
 
 
-def test_rule_takes_the_best_transfer_among_candidates_that_fit_the_held_out_segment():
-    rows = [_row("a", 100.0, 0.01, 0.2), _row("b", 140.0, 0.01, 0.3), _row("c", 400.0, 0.01, 0.4)]
-    transfer = {"a": 0.10, "b": 0.05, "c": 0.01}
-    # c transfers best but misses the target's own held-out segment (4x the best): not admissible
-    assert real_loops.choose_variant(rows, transfer)["variant"] == "b"
-    # without transfer scores the segment decides
-    assert real_loops.choose_variant(rows, {})["variant"] == "a"
+def test_rule_chooses_by_the_validation_loop_and_never_reads_the_predicted_loops():
+    # a fits its loop best, c predicts the smallest loop best: the second-largest loop decides (b)
+    rows = [_row("a", 0.001, 0.03, 0.05, 0.09), _row("b", 0.004, 0.01, 0.04, 0.12), _row("c", 0.009, 0.02, 0.01, 0.01)]
+    transfer = {"a": 0.01, "b": 0.5, "c": 0.2}
+    chosen, how = real_loops.choose_variant(rows, transfer)
+    assert (chosen["variant"], how) == ("b", "validation")
+    # the predicted loops (third and smaller) change: the choice does not
+    shuffled = [_row(r["variant"], *list(r["nrmse_B"].values())[:2], 0.5, 0.001) for r in rows]
+    assert real_loops.choose_variant(shuffled, transfer)[0]["variant"] == "b"
+    # an exact tie on the validation loop: the lower fitted-loop NRMSE
+    tied = [_row("a", 0.004, 0.02, 0.1), _row("b", 0.002, 0.02, 0.3)]
+    assert real_loops.choose_variant(tied, {})[0]["variant"] == "b"
+
+
+def test_rule_falls_back_to_the_transfer_score_below_three_loops():
+    rows = [_row("a", 0.001, 0.09), _row("b", 0.004, 0.01), _row("c", 0.009, 0.05)]
+    chosen, how = real_loops.choose_variant(rows, {"a": 0.03, "b": 0.2, "c": 0.1})
+    assert (chosen["variant"], how) == ("a", "transfer")
+    # without any transfer score, the fitted loop
+    assert real_loops.choose_variant(rows, {}) == (rows[0], "fitted")
+    assert real_loops.choose_variant([_row("a", 0.02), _row("b", 0.01)], {}) == (_row("b", 0.01), "fitted")
 
 
 def test_transfer_score_leaves_the_target_material_out():
-    shared = {"x": [_row("a", 1.0, 0.01, 0.02, 0.30)], "y": [_row("a", 1.0, 0.01, 0.10, 0.04)]}
+    shared = {"x": [_row("a", 0.01, 0.02, 0.30)], "y": [_row("a", 0.01, 0.10, 0.04)]}
     assert real_loops.transfer_scores(shared) == {"a": pytest.approx((0.30 + 0.10) / 2)}
     assert real_loops.transfer_scores(shared, exclude={"x"}) == {"a": pytest.approx(0.10)}
     loops = synthetic_loops(TRUE, peaks=(50.0,))
@@ -69,3 +82,25 @@ def test_saturating_hem_fit_recovers_the_reversible_saturation():
     # the linear-reversible HEM cannot follow the bounded reversible part as closely
     linear = real_loops.fit_hem(rec, "normal", mask)
     assert fit.sse < 0.1 * linear.sse
+
+
+def test_anhysteretic_population_fit_recovers_a_known_model_and_never_fits_worse_than_without():
+    true = TRUE.replace(reversible_saturation=30.0, reversible_susceptibility=800.0,
+                        anhysteretic_magnetization=1.0e5, anhysteretic_scale=4.0)
+    loops = synthetic_loops(true)
+    rec = real_loops.loop_recording([loops[0]], "synthetic")
+    mask = np.zeros(rec.size, bool)
+    mask[loops[0][0].size:] = True
+    fit = real_loops.fit_hem(rec, "normal", mask, saturating=True, anhysteretic=True)
+    for name in ("anhysteretic_magnetization", "anhysteretic_scale", "relay_magnetization", "coercive_median"):
+        assert getattr(fit.params, name) == pytest.approx(getattr(true, name), rel=0.05), name
+    for H, B in loops[1:]:
+        other, m = real_loops.predict_loop(fit, H, B, "small")
+        assert real_loops.nrmse_of_b(other, m, H.size, 2 * H.size) < 0.01
+    nested = real_loops.fit_hem(rec, "normal", mask, saturating=True)
+    assert fit.sse <= nested.sse and fit.sse < 0.1 * nested.sse
+    # on a model without the population, adding it cannot fit worse (it starts from the nested fit)
+    plain = synthetic_loops(TRUE.replace(reversible_saturation=30.0, reversible_susceptibility=2000.0))
+    rec = real_loops.loop_recording([plain[0]], "synthetic")
+    assert real_loops.fit_hem(rec, "lorentzian", mask, True, True).sse <= real_loops.fit_hem(
+        rec, "lorentzian", mask, True).sse * (1 + 1e-9)
