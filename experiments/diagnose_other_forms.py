@@ -255,22 +255,42 @@ def before_after(before_rows, after_rows) -> list[str]:
     return lines
 
 
-def _write_texts(args, payload):
-    """The study's markdown, and with ``--page`` its tables (less the title) in the page's section."""
+#: the study markdown's sections that the documentation page shows; the others (per case and
+#: channel set, per form, every recording, before/after) stay in ``other_forms.md``
+PAGE_SECTIONS = ("Total", "Per channel set", "Per case", "Reliability of `confidence`")
+
+
+def page_section(text: str) -> str:
+    """The page's section from the study's markdown: its preamble and :data:`PAGE_SECTIONS`."""
+    parts = text.split("\n## ")
+    body = parts[0].split("\n", 2)[2]   # drop the title line and the blank line after it
+    kept = [p for p in parts[1:] if p.split("\n", 1)[0].strip() in PAGE_SECTIONS]
+    return ("\n### ".join([body, *kept]).rstrip("\n")
+            + "\n\nPer case and channel set, per form, every recording, and the tool's earlier verdicts on the "
+            "same recordings: `experiments/results/diagnose/other_forms.md`.\n")
+
+
+def study_text(payload, before=None) -> str:
+    """The study's markdown from its JSON payload, with the before/after table against the study
+    JSON ``before`` where that file exists."""
     text = markdown(payload["summary"], payload["rows"], payload["command"], payload["skipped"])
-    before = getattr(args, "before", None)
     if before is not None and before.is_file():
         earlier = json.loads(before.read_text())
         text += "\n".join(["", "## Before and after (the same recordings)", "",
                            f"Rows of `{before.name}` (`{earlier['command']}`, an earlier tool) against this run, "
                            "on the recordings both contain, both scored by today's right verdicts.", ""]
                           + before_after(earlier["rows"], payload["rows"])) + "\n"
+    return text
+
+
+def _write_texts(args, payload):
+    """The study's markdown, and with ``--page`` its tables (less the title) in the page's section."""
+    text = study_text(payload, getattr(args, "before", None))
     args.out.with_suffix(".md").write_text(text)
     if args.page is not None:
         from experiments.report_markdown import update_readme
 
-        body = text.split("\n", 2)[2]   # drop the title line and the blank line after it
-        update_readme(args.page, body.replace("\n## ", "\n### "), area="other-forms")
+        update_readme(args.page, page_section(text), area="other-forms")
 
 
 if __name__ == "__main__":
