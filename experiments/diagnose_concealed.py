@@ -310,6 +310,16 @@ def markdown(summary, comparison=()):
     return "\n".join(lines) + "\n"
 
 
+def page_section(summary) -> str:
+    """The documentation page's section: the summary table and the reliability table of
+    :func:`markdown` (the per-effect tables and the before/after table stay in ``concealed.md``)."""
+    sections = markdown(summary).split("\n## ")
+    reliability_table = next(s for s in sections if s.startswith("Reliability of"))
+    return (sections[0].split("\n", 2)[2] + "\n### " + reliability_table
+            + "\nPer effect and generator, and the tool's earlier verdicts on the same recordings: "
+            "`experiments/results/diagnose/concealed.md`.\n")
+
+
 def write_outputs(summary, rows):
     RESULTS.mkdir(parents=True, exist_ok=True)
     FIGURES.mkdir(parents=True, exist_ok=True)
@@ -393,9 +403,7 @@ def main(argv=None):
     if args.readme is not None:
         from experiments.report_markdown import update_readme
 
-        sections = text.split("\n## ")
-        body = sections[0].split("\n", 2)[2] + "\n#### " + sections[-1]  # summary table + reliability table
-        update_readme(args.readme, body, area="concealed-study")
+        update_readme(args.readme, page_section(summary), area="concealed-study")
     print(text.split("\n## ")[0])
 
 
