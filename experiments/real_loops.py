@@ -165,6 +165,28 @@ def stability_checks(recording, **kwargs):
             for name, r in reports.items()}, reports["as recorded"]
 
 
+def loop_shape(recording, predicted_m, start, stop) -> dict:
+    """Predicted over measured loop area (the loss per cycle) and peak-to-peak B over the scored cycle: where
+    a prediction misses, whether the model's loop is too lossy (relays switch) or too flat."""
+    H = recording.field[start:stop]
+    b_meas = MU0 * (H + recording.magnetization[start:stop])
+    b_model = MU0 * (H + predicted_m[start:stop])
+    area = [abs(float(np.sum(0.5 * (b[1:] + b[:-1]) * np.diff(H)))) for b in (b_model, b_meas)]
+    return {"area_ratio": area[0] / area[1], "ptp_ratio": float(np.ptp(b_model) / np.ptp(b_meas))}
+
+
+def loop_scores(fit, loops, order, stem):
+    """``(nrmse_B, shape)``: the NRMSE of B of every loop (largest first) and its :func:`loop_shape`."""
+    nrmse, shape = {}, {}
+    for j in order:
+        H, B = loops[j]
+        recording, m = predict_loop(fit, H, B, f"{stem} loop {j}")
+        key = f"{np.max(np.abs(H)):.3g} A/m"
+        nrmse[key] = nrmse_of_b(recording, m, H.size, 2 * H.size)
+        shape[key] = loop_shape(recording, m, H.size, 2 * H.size)
+    return nrmse, shape
+
+
 def nrmse_of_b(recording, predicted_m, start, stop):
     H = recording.field[start:stop]
     b_meas = MU0 * (H + recording.magnetization[start:stop])
@@ -219,10 +241,7 @@ def holdout_study(stem, folder=DATA, materials=MATERIALS, model="auto"):
                "at_bound": [name for name, p in fit.model.parameters.items() if p.free and
                             min(abs(fit.values[name] - p.lower), abs(p.upper - fit.values[name]))
                             < 1e-3 * (p.upper - p.lower)]}
-        row["nrmse_B"] = {f"{np.max(np.abs(loops[j][0])):.3g} A/m":
-                          nrmse_of_b(*_predict(fit, *loops[j], f"{stem} loop {j}"), loops[j][0].size,
-                                     2 * loops[j][0].size)
-                          for j in order}
+        row["nrmse_B"], row["loop_shape"] = loop_scores(fit, loops, order, stem)
         row["prediction_spread"] = prediction_spread(good, starts, loops, order, stem)
         results.append(row)
     for variant in (HEM_VARIANTS if model in ("hem", "auto") else ()):
@@ -490,10 +509,8 @@ def hem_row(stem, variant, rec, fit_mask, loops, order, materials):
                 and min(abs(np.log(params[n] / (lo * unit[n]))), abs(np.log(hi * unit[n] / params[n]))) < 1e-3]
     row = {"material": materials[stem], "curve": None, "variant": hem_variant_name(*variant),
            "fit_seconds": seconds, "params": params, "uncertainties": {}, "at_bound": at_bound,
-           "prediction_spread": None,
-           "nrmse_B": {f"{np.max(np.abs(loops[j][0])):.3g} A/m":
-                       nrmse_of_b(*predict_loop(fit, *loops[j], f"{stem} loop {j}"), loops[j][0].size,
-                                  2 * loops[j][0].size) for j in order}}
+           "prediction_spread": None}
+    row["nrmse_B"], row["loop_shape"] = loop_scores(fit, loops, order, stem)
     return row, fit
 
 
@@ -630,7 +647,8 @@ def scores_json(stem, results, best, how, transfer=None):
             "params": best["params"], "uncertainties": best["uncertainties"],
             "at_bound": best["at_bound"], "prediction_spread": best.get("prediction_spread"),
             "transfer_scores": transfer or {},
-            "variants": {r["variant"]: {"nrmse_B": r["nrmse_B"], "fit_seconds": r["fit_seconds"],
+            "variants": {r["variant"]: {"nrmse_B": r["nrmse_B"], "loop_shape": r["loop_shape"],
+                                      "fit_seconds": r["fit_seconds"],
                                       "params": r["params"], "at_bound": r["at_bound"]} for r in results}}
 
 
