@@ -101,7 +101,8 @@ def test_minor_loops_between_the_same_fields_are_congruent():
 
 
 def test_point_symmetric_and_saturating():
-    field = np.concatenate([np.linspace(0, 400.0, 80), np.linspace(400.0, -400.0, 160), np.linspace(-400.0, 400.0, 160)])
+    field = np.concatenate([np.linspace(0, 400.0, 80), np.linspace(400.0, -400.0, 160),
+                            np.linspace(-400.0, 400.0, 160)])
     up = simulate_hem(field, **PARAMS)
     down = simulate_hem(-field, **PARAMS)
     # to twice the compiled erf's absolute accuracy (1.5e-7) for the normal density
