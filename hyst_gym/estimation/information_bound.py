@@ -22,9 +22,9 @@ A field that starts at 0 under the slew limit has ``max_{s<=j} |H_s| <= min(slew
 so ``|m_j| <= Phi(min(slew*j*dt, field_limit))``, the *sensitivity envelope*: the largest ``|dM/da|``
 of any history whose field stayed within that bound, over every a the episode can reach
 (:func:`sensitivity_table`). Hence ``I_t <= G^2 sum_{j<=t} Phi_j^2/sigma^2`` for any input, adaptive or
-not. The thermal limit is dropped (a relaxation: fewer constraints, more information, so the
-bound stays valid; for the hot coil the heat budget would bind only late in the episode, when the
-floor is already small).
+not. The thermal limit is dropped here (a relaxation: fewer constraints, more information, so the
+bound stays valid, but loose: at full field the hot coil's heat budget binds after 1..4 s, before
+the scored window). :func:`heated_floor` keeps it (section below).
 
 **What is assumed, and checked.** ``Phi`` is not derived in closed form: it is the running maximum,
 binned by the largest ``|H|`` reached so far, of ``|dM/da|`` on the initial magnetization curve and on
@@ -36,6 +36,31 @@ histories to the envelope (``check_ratio``), and the envelope is multiplied by t
 The tests cross-check the finite-difference sensitivity against the estimator bank's
 interpolated slope, and the Van Trees formula against Monte-Carlo of the exact posterior mean
 on a linear-Gaussian case, where the bound is attained.
+
+**The floor with the heat budget** (:func:`heated_floor`; the derivation in full is in
+``experiments/results/floors.md``). Three changes to the above, each keeping the bound valid:
+
+1. *Current-field envelope.* ``|dM/da|`` is nearly proportional to the *current* ``|H|`` (about
+   1.3e-4 per A/m, on the way up and down alike), so :func:`current_field_envelope` bins it by the
+   current ``|H|`` (the largest over histories under the field limit whose present ``|H|`` is at most
+   the bin's field), not by the largest ``|H|`` so far. Its sampling is corrected *bin by bin* by an
+   independent second set of histories and checked on a third.
+2. *Heat as a constraint.* With no ambient drift the temperature rise ``D_s`` of the coil is a known
+   linear recursion in the field's mean square (:class:`ThermalBudget`, the env's exact step), and a
+   start T0 leaves ``B = T_limit - T0``. The largest ``G^2 sum_{j<=t} Psi(|H_j|)^2/sigma^2`` over
+   slew- and field-limited paths with ``D_s <= B`` for ``s < t`` (an overheat at step t still scores
+   step t) is bounded by Lagrangian duality: for any multipliers ``lambda_s >= 0`` the path maximum
+   of ``sum Psi^2 - sum lambda_s (D_s - B)`` (a dynamic programme over a field grid, rewards
+   rounded up and heat rounded down) is an upper bound (:func:`heated_information_ceiling`).
+3. *The prior split by start temperature.* The Bayes risk is concave in the prior, so writing the
+   raised cosine as ``p = sum_k w_k p_k`` with ``p_k = p*phi_k/w_k`` (``phi_k`` raised-cosine bumps of half
+   width d centred every d, a partition of unity) gives ``risk >= sum_k w_k * risk(p_k)``; on each piece
+   Van Trees holds with the piece's own Fisher information ``J_k`` (quadrature) and the heat budget of
+   the coolest start of the piece. A policy that overheats
+   on a fraction ``q`` of a piece's draws gains at most ``q*I_free`` of information and pays
+   ``q*(e_over^2 - (2 d_a)^2)`` (the metric counts ``e_over`` = width(Theta) per step after an
+   overheat): :func:`heated_floor` checks that this never pays, so the floor holds for every policy,
+adaptive or not, overheating or not.
 """
 
 from __future__ import annotations
@@ -44,6 +69,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from numba import njit
 
 from ..physics import HysteresisBatch, HysteresisParams, simulate_batch
 
@@ -188,6 +215,338 @@ def episode_floor(setting: BoundSetting, table: SensitivityTable, first_step: in
     return float(np.sqrt(np.mean(van_trees_mse(setting, table)[first_step:])))
 
 
-__all__ = ["BoundSetting", "SensitivityTable", "episode_floor", "information_ceiling",
-           "magnetization_sensitivity", "random_admissible_fields", "raised_cosine_fisher",
+
+
+# ---------------------------------------------------------------------------- the floor with the heat budget
+
+
+@dataclass(frozen=True)
+class CurrentFieldEnvelope:
+    """``envelope[i]`` (dimensionless): the largest ``|dM/da|`` found on any history kept under the field
+    limit at a moment when its present ``|H| <= fields[i]`` (A/m; ``fields[0] = 0``), over the a range
+    (and the k values) it was built for; non-decreasing. ``sampled``: the same from the initial curve
+    and the first set of random histories alone; ``correction_ratio``: the largest ratio of the second,
+    independent set to ``sampled`` in any bin (the envelope is ``sampled`` raised bin by bin to that
+    set, ``corrected_bins`` bins of ``fields.size``); ``residual_ratio``: the largest ratio of a third
+    set to the envelope (<= 1: the check found no history above it)."""
+
+    fields: np.ndarray
+    envelope: np.ndarray
+    sampled: np.ndarray
+    correction_ratio: float
+    corrected_bins: int
+    residual_ratio: float
+
+    def at(self, field) -> np.ndarray:
+        """The envelope at ``|field|`` (A/m): the value of the first bin whose field is at least it (an
+        upper bound, since the envelope is non-decreasing); ValueError above the last bin."""
+        field = np.abs(np.asarray(field, dtype=np.float64))
+        if np.any(field > self.fields[-1] * (1 + 1e-12)):
+            raise ValueError(f"CurrentFieldEnvelope.at: |field| above the envelope's {self.fields[-1]:g} A/m")
+        return self.envelope[np.minimum(np.searchsorted(self.fields, field * (1 - 1e-12)), self.fields.size - 1)]
+
+
+def _current_field_maximum(params_list, a_values, fields, max_change, max_field_step, n_paths, steps, seed):
+    """Per bin i: the largest |dM/da| seen on random admissible histories at moments when the present
+    |H| was in (fields[i-1], fields[i]] (bin 0: H = 0), before the running maximum over bins."""
+    paths = random_admissible_fields(n_paths, steps, max_change, fields[-1], seed)
+    bins = np.minimum(np.searchsorted(fields, np.abs(paths)), fields.shape[0] - 1)
+    found = np.zeros(fields.shape[0])
+    for params in params_list:
+        for path in range(n_paths):
+            seen = magnetization_sensitivity(paths[:, path], a_values, params, max_field_step).max(axis=1)
+            np.maximum.at(found, bins[:, path], seen)
+    return found
+
+
+def current_field_envelope(params_list, a_range, field_limit: float, max_change: float, max_field_step: float,
+                           field_step: float, n_a: int = 5, n_paths: int = 64, steps: int = 200,
+                           seed: int = 0) -> CurrentFieldEnvelope:
+    """The current-field envelope (module doc, point 1) of the models ``params_list`` (a list of
+    :class:`~hyst_gym.physics.HysteresisParams`, e.g. several k) for a in ``a_range`` (A/m, ``n_a``
+    values), on bins every ``field_step`` A/m up to ``field_limit``: the initial curve and ``n_paths``
+    random slew-limited histories of ``steps`` steps (``max_change`` A/m per step, seed ``seed``), raised bin
+    by bin to ``n_paths`` histories of seed ``seed + 1``, checked on ``n_paths`` of seed ``seed + 2``."""
+    if not (field_step > 0 and field_limit > 0):
+        raise ValueError(f"current_field_envelope: field_step and field_limit must be > 0, got {field_step!r}, "
+                         f"{field_limit!r}")
+    params_list = list(params_list)
+    a_values = np.linspace(float(a_range[0]), float(a_range[1]), n_a)
+    fields = np.append(np.arange(0.0, field_limit * (1 - 1e-12), field_step), field_limit)
+    curve = np.zeros(fields.shape[0])
+    for params in params_list:
+        curve[1:] = np.maximum(curve[1:], magnetization_sensitivity(fields[1:], a_values, params,
+                                                                    max_field_step).max(axis=1))
+    args = (params_list, a_values, fields, max_change, max_field_step, n_paths, steps)
+    sampled = np.maximum.accumulate(np.maximum(curve, _current_field_maximum(*args, seed)))
+    second = np.maximum.accumulate(_current_field_maximum(*args, seed + 1))
+    envelope = np.maximum(sampled, second)
+    third = np.maximum.accumulate(_current_field_maximum(*args, seed + 2))
+    positive = sampled > 0
+    correction = float(np.max(second[positive] / sampled[positive])) if positive.any() else 1.0
+    residual = float(np.max(third[envelope > 0] / envelope[envelope > 0]))
+    return CurrentFieldEnvelope(fields, envelope, sampled, correction, int(np.sum(second > sampled)), residual)
+
+
+@dataclass(frozen=True)
+class ThermalBudget:
+    """The coil's heating as the env steps it (no ambient drift): after a step from field ``h0`` to ``h1``
+    (A/m, moving linearly) the rise ``D = T - T0`` (K) becomes ``decay*D + (1 - decay)*R_th*kappa*ms``, with
+    ``ms = (h0^2 + h0 h1 + h1^2)/3`` the step's mean square field, ``decay = exp(-dt/(R_th C_th))``.
+
+    ``dt`` (s), ``thermal_resistance`` R_th (K/W), ``heat_capacity`` C_th (J/K), ``power_per_square_field``
+    kappa = R/n^2 (W per (A/m)^2), ``temperature_limit`` (K: above it the episode ends), ``start_low``,
+    ``start_high`` (K: the raised-cosine prior of the start T0, which is also the ambient),
+    ``a_reference`` (A/m) at ``reference_temperature`` (K): ``a = a_reference*T/reference_temperature``, eq. (4)."""
+
+    dt: float
+    thermal_resistance: float
+    heat_capacity: float
+    power_per_square_field: float
+    temperature_limit: float
+    start_low: float
+    start_high: float
+    a_reference: float
+    reference_temperature: float
+
+    def __post_init__(self):
+        for name in ("dt", "thermal_resistance", "heat_capacity", "power_per_square_field", "temperature_limit",
+                     "start_low", "start_high", "a_reference", "reference_temperature"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or \
+                    value <= 0:
+                raise ValueError(f"ThermalBudget: {name} must be a finite number > 0, got {value!r}")
+        if not self.start_low < self.start_high < self.temperature_limit:
+            raise ValueError(f"ThermalBudget: need start_low < start_high < temperature_limit, got "
+                             f"{self.start_low!r}, {self.start_high!r}, {self.temperature_limit!r}")
+
+    @property
+    def decay(self) -> float:
+        """``exp(-dt/(R_th C_th))`` per step."""
+        return math.exp(-self.dt / (self.thermal_resistance * self.heat_capacity))
+
+    @property
+    def rise_per_mean_square(self) -> float:
+        """K of rise per (A/m)^2 of a step's mean square field: ``(1 - decay)*R_th*kappa``."""
+        return (1.0 - self.decay) * self.thermal_resistance * self.power_per_square_field
+
+    @property
+    def a_per_kelvin(self) -> float:
+        """da/dT, A/m per K (eq. (4))."""
+        return self.a_reference / self.reference_temperature
+
+    def rise(self, field) -> np.ndarray:
+        """The rise D_s (K) after each step of ``field`` (A/m, shape (steps, ...)), from 0 at H = 0."""
+        field = np.asarray(field, dtype=np.float64)
+        previous = np.zeros(field.shape[1:])
+        rise = np.zeros(field.shape[1:])
+        out = np.empty_like(field)
+        for s in range(field.shape[0]):
+            mean_square = (previous * previous + previous * field[s] + field[s] * field[s]) / 3.0
+            rise = self.decay * rise + self.rise_per_mean_square * mean_square
+            out[s] = rise
+            previous = field[s]
+        return out
+
+
+@njit(cache=True)
+def _path_maxima(reward, heat, reach, multipliers):
+    """Per row of ``multipliers`` (batch, steps): the largest ``sum_j reward[f_j] - m_j*heat[f_{j-1}, f_j]``
+    over grid paths from f_0 = 0 moving by at most ``reach`` cells per step."""
+    n = reward.shape[0]
+    out = np.empty(multipliers.shape[0])
+    value = np.empty(n)
+    new = np.empty(n)
+    for b in range(multipliers.shape[0]):
+        value[:] = -np.inf
+        value[0] = 0.0
+        for j in range(multipliers.shape[1]):
+            m = multipliers[b, j]
+            for g in range(n):
+                best = -np.inf
+                for f in range(max(0, g - reach), min(n, g + reach + 1)):
+                    v = value[f] - m * heat[f, g]
+                    if v > best:
+                        best = v
+                new[g] = best + reward[g]
+            value[:] = new
+        out[b] = value.max()
+    return out
+
+
+#: the multiplier family of the dual (:func:`heated_information_ceiling`): onsets every this many steps,
+#: and these levels (1/(A/m)^2 of information per K, times the largest per-step reward); level 0 included
+DUAL_ONSET_STRIDE = 2
+DUAL_LEVELS = np.concatenate([[0.0], np.geomspace(1e-3, 1e2, 61)])
+
+
+def _multipliers(horizon: int, onset: int, level: float, decay: float):
+    """The family member: ``lambda_s = level*(1 - decay)`` for onset <= s < horizon - 1, ``lambda_{horizon-1} =
+    level``, 0 before onset; returns the per-step heat weights ``mu_i = sum_{s>=i} lambda_s decay^(s-i)``
+    (level from the onset on, level*decay^(onset-i) before; the heat of step ``horizon`` is free) and
+    ``sum_s lambda_s``."""
+    i = np.arange(1, horizon + 1)
+    weights = np.where(i >= onset, level, level * decay ** np.maximum(onset - i, 0))
+    weights[-1] = 0.0
+    return weights, level * (1.0 - decay) * max(horizon - 1 - onset, 0) + level
+
+
+@dataclass(frozen=True)
+class HeatedCeiling:
+    """Upper bounds on ``sum_{j<=t} Psi(|H_j|)^2`` (dimensionless; times ``G^2/sigma^2`` it is the Fisher
+    information in 1/(A/m)^2) over admissible paths, per horizon t in ``horizons`` (steps): ``free`` with
+    the field and slew limits only, and through :meth:`at` with a heat budget too. ``values[h, m]`` and
+    ``sums[h, m]`` hold the path maximum and ``sum lambda`` of the m-th multiplier of the family at horizon
+    h: the bound for a budget B is ``min_m values + B*sums`` (weak duality, any m is valid)."""
+
+    horizons: np.ndarray
+    free: np.ndarray
+    values: np.ndarray
+    sums: np.ndarray
+
+    def at(self, budget: float) -> np.ndarray:
+        """Per horizon, the bound with the temperature rise kept at or below ``budget`` (K) before the
+        horizon's step."""
+        if not budget >= 0:
+            raise ValueError(f"HeatedCeiling.at: budget must be >= 0 K, got {budget!r}")
+        return np.min(self.values + budget * self.sums, axis=1)
+
+
+def heated_information_ceiling(envelope: CurrentFieldEnvelope, thermal: ThermalBudget, max_change: float,
+                               horizons, cells_per_step: int = 2) -> HeatedCeiling:
+    """The dual bound of the module doc (point 2) on a field grid of ``max_change/cells_per_step`` A/m
+    (``max_change``: the slew limit per step, A/m; the envelope's bins must be that grid). A path's
+    field ``|H_j|`` is replaced by its grid floor f_j (which moves by at most ``cells_per_step`` cells per
+    step): the reward is the envelope at the cell's top and the heat is the mean square of the floors
+    (``(x^2 + y^2)/6`` when ``x + y`` is within one slew step, where the field may change sign), so every
+    admissible path is dominated by a grid path."""
+    fields = envelope.fields
+    cell = max_change / cells_per_step
+    expected = np.append(np.arange(0.0, fields[-1] * (1 - 1e-12), cell), fields[-1])
+    if expected.shape != fields.shape or not np.allclose(expected, fields, rtol=0, atol=1e-9 * fields[-1]):
+        raise ValueError(f"heated_information_ceiling: the envelope's bins must be every max_change/cells_per_step "
+                         f"= {cell:g} A/m up to {fields[-1]:g} A/m")
+    horizons = np.asarray(horizons, dtype=np.int64)
+    if horizons.ndim != 1 or horizons.size == 0 or np.any(horizons < 1):
+        raise ValueError("heated_information_ceiling: horizons must be a non-empty list of steps >= 1")
+    if abs(fields[-1] / cell - round(fields[-1] / cell)) > 1e-9:
+        raise ValueError(f"heated_information_ceiling: the field limit {fields[-1]:g} A/m must be a whole number "
+                         f"of cells of {cell:g} A/m")
+    floors = fields  # cell f covers [fields[f], fields[f + 1]); the last cell is the limit itself
+    reward = envelope.envelope[np.minimum(np.arange(fields.size) + 1, fields.size - 1)] ** 2
+    x, y = floors[:, None], floors[None, :]
+    mean_square = np.where(x + y > max_change, (x * x + x * y + y * y) / 3.0, (x * x + y * y) / 6.0)
+    heat = thermal.rise_per_mean_square * mean_square
+    levels = DUAL_LEVELS * reward.max()
+    free, values, sums = [], [], []
+    onsets = np.arange(1, int(horizons.max()) + 1, DUAL_ONSET_STRIDE)
+    for horizon in horizons:
+        rows, lams = [], []
+        for onset in np.minimum(onsets, max(int(horizon) - 1, 1)):
+            for level in levels:
+                weights, lam = _multipliers(int(horizon), int(onset), float(level), thermal.decay)
+                rows.append(weights)
+                lams.append(lam)
+        maxima = _path_maxima(reward, heat, int(cells_per_step), np.array(rows))
+        free.append(_path_maxima(reward, heat, int(cells_per_step), np.zeros((1, int(horizon))))[0])
+        values.append(maxima)
+        sums.append(np.array(lams))
+    return HeatedCeiling(horizons, np.array(free), np.array(values), np.array(sums))
+
+
+@dataclass(frozen=True)
+class HeatedFloor:
+    """The floor of :func:`heated_floor`: ``value`` (A/m), the RMS over the scored steps and the prior;
+    ``per_step`` ((A/m)^2, one per scored step); ``pieces`` the start temperatures (K) at the centres of
+    the prior's pieces, ``weights`` their w_k (summing to ``prior_mass``, 1 up to quadrature),
+    ``piece_fisher`` their J_k (1/(A/m)^2), ``piece_floor`` (A/m) the RMS bound within each piece;
+    ``hottest_start`` (A/m): the same floor as if every start were the hottest of the prior (what an
+    input that must be safe for every start faces; not a bound on feedback); ``free`` (A/m): the floor
+    with the heat budget dropped; ``overheat_margin``: the smallest ratio of ``e_over^2 - (2 d_a)^2`` to
+    the largest marginal gain of overheating ``I_free/(J_k + I_k)^2`` (> 1: overheating never pays)."""
+
+    value: float
+    per_step: np.ndarray
+    pieces: np.ndarray
+    weights: np.ndarray
+    piece_fisher: np.ndarray
+    piece_floor: np.ndarray
+    prior_mass: float
+    hottest_start: float
+    free: float
+    overheat_margin: float
+
+
+def _prior_pieces(thermal: ThermalBudget, half_width: float, nodes: int = 4001):
+    """The prior split by a partition of unity (module doc, point 3): raised-cosine bumps ``phi_k`` of half
+    width d (K) centred every d from ``start_low`` to ``start_high`` (summing to 1 there), pieces
+    ``p_k = p*phi_k/w_k``, ``w_k = integral p*phi_k`` (summing to 1). Returns the centres (K), the weights,
+    the coolest start of each piece (K) and each piece's location Fisher information in a (1/(A/m)^2,
+    by the midpoint rule on ``nodes`` points: ``integral (p_k')^2/p_k``)."""
+    low, high = thermal.start_low, thermal.start_high
+    width = high - low
+    count = int(round(width / half_width))
+    if count < 2 or abs(width / half_width - count) > 1e-9:
+        raise ValueError(f"heated_floor: piece_half_width {half_width!r} K must divide the prior's width "
+                         f"{width:g} K at least twice")
+    centres = low + half_width * np.arange(count + 1)
+    u = (np.arange(nodes) + 0.5) / nodes  # midpoints over each piece's support
+    weights, coolest, fisher = [], [], []
+    for centre in centres:
+        start, stop = max(centre - half_width, low), min(centre + half_width, high)
+        x = start + (stop - start) * u
+        z = (x - low) / width
+        density = (1.0 - np.cos(2.0 * np.pi * z)) / width
+        slope = 2.0 * np.pi * np.sin(2.0 * np.pi * z) / width ** 2
+        angle = np.pi * (x - centre + half_width) / half_width
+        bump = 0.5 * (1.0 - np.cos(angle))
+        bump_slope = 0.5 * np.pi / half_width * np.sin(angle)
+        mass = density * bump
+        step = (stop - start) / nodes
+        weight = float(np.sum(mass) * step)
+        score_squared = (slope * bump + density * bump_slope) ** 2 / mass
+        weights.append(weight)
+        coolest.append(start)
+        fisher.append(float(np.sum(score_squared) * step) / weight / thermal.a_per_kelvin ** 2)
+    return centres, np.array(weights), np.array(coolest), np.array(fisher)
+
+
+def heated_floor(setting: BoundSetting, ceiling: HeatedCeiling, thermal: ThermalBudget, first_step: int,
+                 overheat_error: float, piece_half_width: float = 1.0) -> HeatedFloor:
+    """Floor (A/m) on the RMS error over steps ``first_step + 1 .. setting.steps`` and the start prior of any
+    estimate under any input, adaptive or not (module doc, point 3): ``sqrt(mean_t sum_k w_k/(J_k + I_k,t))``
+    with ``I_k,t = G^2/sigma^2 * ceiling`` at the budget of the piece's coolest start, the ceiling of a
+    horizon taken at the next horizon computed (the information only grows). ``overheat_error`` (A/m):
+    what the metric counts per step after an overheat (width(Theta)); ``piece_half_width`` (K)."""
+    if not 0 <= first_step < setting.steps:
+        raise ValueError(f"heated_floor: first_step must be in [0, {setting.steps}), got {first_step!r}")
+    if not piece_half_width > 0:
+        raise ValueError(f"heated_floor: piece_half_width must be > 0 K, got {piece_half_width!r}")
+    steps = np.arange(first_step + 1, setting.steps + 1)
+    horizons = ceiling.horizons
+    if horizons.max() < setting.steps:
+        raise ValueError(f"heated_floor: the ceiling's horizons end at {horizons.max()}, before step {setting.steps}")
+    column = np.searchsorted(horizons, steps)  # the first horizon at or after each step
+    scale = setting.gain ** 2 / setting.sigma ** 2
+    centres, weights, coolest, fishers = _prior_pieces(thermal, piece_half_width)
+    half_a = piece_half_width * thermal.a_per_kelvin
+    free = scale * ceiling.free[column]
+    per_step = np.zeros(steps.size)
+    piece_floor, margins = [], []
+    for weight, start, piece_fisher in zip(weights, coolest, fishers):
+        info = scale * ceiling.at(thermal.temperature_limit - start)[column]
+        bound = 1.0 / (piece_fisher + info)
+        per_step += weight * bound
+        piece_floor.append(math.sqrt(float(np.mean(bound))))
+        margins.append((overheat_error ** 2 - (2 * half_a) ** 2) / float(np.max(free * bound ** 2)))
+    hottest = scale * ceiling.at(thermal.temperature_limit - thermal.start_high)[column]
+    prior_fisher = raised_cosine_fisher((thermal.start_high - thermal.start_low) * thermal.a_per_kelvin)
+    return HeatedFloor(math.sqrt(float(np.mean(per_step))), per_step, centres, weights, fishers, np.array(piece_floor),
+                       float(weights.sum()), math.sqrt(float(np.mean(1.0 / (prior_fisher + hottest)))),
+                       math.sqrt(float(np.mean(1.0 / (prior_fisher + free)))), float(min(margins)))
+
+
+__all__ = ["BoundSetting", "CurrentFieldEnvelope", "HeatedCeiling", "HeatedFloor", "SensitivityTable",
+           "ThermalBudget", "current_field_envelope", "episode_floor", "heated_floor", "heated_information_ceiling",
+           "information_ceiling", "magnetization_sensitivity", "random_admissible_fields", "raised_cosine_fisher",
            "raised_cosine_quantile", "sensitivity_table", "van_trees_mse"]
