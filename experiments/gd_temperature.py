@@ -230,6 +230,81 @@ def load_records(path, stride=8, temperatures: Optional[Sequence[float]] = None)
     return records
 
 
+# --------------------------------------------------------------------------- protocol check
+
+#: A record differs from the others of its amplitude when its value lies this far outside their range (peak
+#: field: relative; start magnetization: share of the loop's half-range; closure and asymmetry: share of ptp B;
+#: the drive's deviation from a sine: share of the peak field, and only above the others' range).
+PROTOCOL_TOLERANCE = {"peak_field": 0.005, "start_share": 0.05, "closure": 0.02, "asymmetry": 0.02,
+                      "sine_deviation": 0.01}
+
+
+def record_protocol(path) -> List[dict]:
+    """How each raw record of an npz laid out like ``gd_loops.npz`` was taken: its length, samples per drive
+    period (twice the samples between the two reversals), peak field, the drive's RMS deviation from a sine
+    of that period over the loop (share of the peak field), the start field, the start magnetization
+    (:func:`start_magnetization`) as a share of the loop's own half-range of M, the loop's closure
+    (B at the end minus B at the first maximum, share of ptp B) and its asymmetry."""
+    rows = []
+    with np.load(path, allow_pickle=False) as data:
+        for T in np.atleast_1d(np.asarray(data["temperatures_C"], dtype=np.float64)):
+            for amp in AMPLITUDES:
+                H = np.asarray(data[f"{tag_for(T)}_{amp}_H"], dtype=np.float64)
+                B = np.asarray(data[f"{tag_for(T)}_{amp}_B"], dtype=np.float64)
+                i_max, i_min = reversal_indices(H)
+                period = 2 * (i_min - i_max)
+                loop = np.arange(i_max, H.size)
+                design = np.column_stack([np.cos(2 * np.pi * (loop - i_max) / period),
+                                          np.sin(2 * np.pi * (loop - i_max) / period)])
+                coefficients = np.linalg.lstsq(design, H[loop], rcond=None)[0]
+                peak = float(np.max(np.abs(H)))
+                M = B / MU0 - H
+                half_range = float(np.ptp(M[i_max:])) / 2.0
+                record = clean_record(H, B, T, amp, stride=1)
+                rows.append({"temperature_C": float(T), "amplitude": amp, "samples": int(H.size),
+                             "samples_per_period": int(period), "peak_field": peak,
+                             "sine_deviation": float(np.sqrt(np.mean((design @ coefficients - H[loop]) ** 2)) / peak),
+                             "start_field": float(H[0]),
+                             "start_share": start_magnetization(H, B, i_max) / half_range,
+                             "closure": float((B[-1] - B[i_max]) / np.ptp(B[i_max:])),
+                             "asymmetry": record.asymmetry})
+    return rows
+
+
+def protocol_differences(rows: Sequence[dict]) -> List[str]:
+    """What differs, record by record, from the other records of the same amplitude (PROTOCOL_TOLERANCE), and
+    records whose length differs from the most common one."""
+    lengths = [r["samples"] for r in rows]
+    common = max(set(lengths), key=lengths.count)
+    notes = [f"{r['temperature_C']:+g} °C {r['amplitude']}: {r['samples']} samples ({r['samples_per_period']} per "
+             f"drive period), the others {common}" for r in rows if r["samples"] != common]
+    for r in rows:
+        others = [o for o in rows if o["amplitude"] == r["amplitude"] and o is not r]
+        for key, tolerance in PROTOCOL_TOLERANCE.items():
+            values = [o[key] for o in others]
+            low, high = min(values), max(values)
+            scale = abs(np.median(values)) if key == "peak_field" else 1.0
+            below = key != "sine_deviation" and r[key] < low - tolerance * scale
+            if below or r[key] > high + tolerance * scale:
+                notes.append(f"{r['temperature_C']:+g} °C {r['amplitude']}: {key} {r[key]:.4g}, the others "
+                             f"{low:.4g} to {high:.4g}")
+    return notes
+
+
+def protocol_table(rows: Sequence[dict]) -> str:
+    lines = ["| T (°C) | amplitude | samples | per drive period | peak field (A/m) | drive vs sine (% of peak) | "
+             "start field (A/m) | start M (share of the loop's half-range) | loop closure (% of ptp B) | "
+             "asymmetry (% of ptp B) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['temperature_C']:+g} | {r['amplitude']} | {r['samples']} | {r['samples_per_period']} | "
+                     f"{r['peak_field']:.0f} | {100 * r['sine_deviation']:.2f} | {r['start_field']:.1f} | "
+                     f"{r['start_share']:+.3f} | {100 * r['closure']:+.1f} | {100 * r['asymmetry']:+.1f} |")
+    differences = protocol_differences(rows)
+    lines += ["", "Records that differ from the others of their amplitude:", ""]
+    lines += [f"- {d}" for d in differences] or ["- none"]
+    return "\n".join(lines)
+
+
 # --------------------------------------------------------------------------- law families
 
 
@@ -399,7 +474,8 @@ def parameter_table(family: LawFamily, zs: np.ndarray, temperatures_K: np.ndarra
         for n in PARAMETER_NAMES:
             out[n][i] = values[n]
         if family.rayleigh_ratio is not None:
-            kappa = params.get(family.rayleigh_ratio) if isinstance(family.rayleigh_ratio, str) else family.rayleigh_ratio
+            ratio = family.rayleigh_ratio
+            kappa = params.get(ratio) if isinstance(ratio, str) else ratio
             out["rayleigh_field"][i] = kappa * values["k"]
     return out
 
@@ -625,43 +701,105 @@ FAMILY_LABELS = {
 }
 
 
-def summary_table(study: dict, families: Sequence[str]) -> str:
-    """README summary: worst leave-one-out NRMSE of B (%) per family and amplitude, the
-    held-out temperature of each worst case, and the worst over the other temperatures."""
+#: The accuracy a held-out temperature must reach at every amplitude (NRMSE of B).
+NEAR_TC_TARGET = 0.08
+
+
+def loo_temperatures(study: dict) -> Tuple[List[float], Optional[float]]:
+    """(interior left-out temperatures, the warmest left-out one if it is the top of the range, else None)."""
     rows = study["rows"]
+    shipped = sorted({r["temperature_C"] for r in rows if r["protocol"] == "all"})
+    left_out = sorted({r["temperature_C"] for r in rows if r["protocol"] == "loo"})
+    interior = [T for T in left_out if shipped and shipped[0] < T < shipped[-1]]
+    return interior, (shipped[-1] if shipped and shipped[-1] in left_out else None)
+
+
+def _loo(rows, law, temperatures, amplitude=None):
+    return [r for r in rows if r["law"] == law and r["protocol"] == "loo" and r["nrmse"] is not None
+            and r["temperature_C"] in temperatures and (amplitude is None or r["amplitude"] == amplitude)]
+
+
+def selection_scores(study: dict, families: Sequence[str]) -> Dict[str, float]:
+    """The rule's score of each law: mean held-out NRMSE over the interior temperatures and every amplitude."""
+    interior, _ = loo_temperatures(study)
+    scores = {f: [r["nrmse"] for r in _loo(study["rows"], f, interior)] for f in families}
+    return {f: float(np.mean(v)) for f, v in scores.items() if v}
+
+
+def _fold_cells(rows, law, temperature) -> str:
+    values = {r["amplitude"]: r["nrmse"] for r in _loo(rows, law, [temperature])}
+    return " / ".join(f"{100 * values[a]:.1f}" if a in values else "-" for a in AMPLITUDES)
+
+
+def near_tc_words(study: dict, families: Sequence[str]) -> List[str]:
+    """Where no law predicts within NEAR_TC_TARGET: per fold near Tc (the warmest interior temperature and the
+    extrapolated warmest) and amplitude, the laws within the target or, where none is, the best one."""
+    interior, warmest = loo_temperatures(study)
+    lines = []
+    for T, what in ((interior[-1] if interior else None, "the near-Tc test, inside the range"),
+                    (warmest, "the extrapolation towards Tc, not read by the rule")):
+        if T is None:
+            continue
+        parts = []
+        for amp in AMPLITUDES:
+            scored = sorted((r["nrmse"], f) for f in families for r in _loo(study["rows"], f, [T], amp))
+            if not scored:
+                continue
+            good = [f for v, f in scored if v <= NEAR_TC_TARGET]
+            if good:
+                parts.append(f"{amp}: {len(good)} of {len(scored)} laws within {100 * NEAR_TC_TARGET:.0f} % "
+                             f"(best {scored[0][1]}, {100 * scored[0][0]:.1f} %)")
+            else:
+                parts.append(f"{amp}: **no law within {100 * NEAR_TC_TARGET:.0f} %** (best {scored[0][1]}, "
+                             f"{100 * scored[0][0]:.1f} %)")
+        tc_distance = GD_CURIE_K - float(celsius_to_kelvin(T))
+        lines.append(f"- {T:+g} °C ({tc_distance:.1f} K below Tc; {what}): " + "; ".join(parts) + ".")
+    return lines
+
+
+def summary_table(study: dict, families: Sequence[str]) -> str:
+    """Results-page summary: per law, the worst held-out NRMSE of B (%) over the interior temperatures per
+    amplitude (with where it occurs), the rule's score (interior mean), the near-Tc fold (+5 C) and the
+    extrapolated warmest fold, and the fit time on all temperatures; then the choice and the near-Tc words."""
+    rows = study["rows"]
+    interior, warmest = loo_temperatures(study)
+    near = interior[-1] if interior else None
     peaks = {amp: np.median([r["peak_field"] for r in rows if r["amplitude"] == amp]) for amp in AMPLITUDES}
+    scores = selection_scores(study, families)
     lines = ["| law | " + " | ".join(f"{amp} (≈ {peaks[amp]:.3g} A/m)" for amp in AMPLITUDES)
-             + " | mean LOO | fit on all temperatures |", "|---|" + "---|" * (len(AMPLITUDES) + 2)]
+             + " | interior mean (the rule) | " + (f"{near:+g} °C fold, near Tc | " if near is not None else "")
+             + (f"{warmest:+g} °C, extrapolated | " if warmest is not None else "") + "fit on all temperatures |",
+             "|---|" + "---|" * (len(AMPLITUDES) + 2 + (near is not None) + (warmest is not None))]
     for f in families:
-        every = [r["nrmse"] for r in rows if r["law"] == f and r["protocol"] == "loo" and r["nrmse"] is not None]
         full = [fit for fit in study["fits"] if fit["family"] == f and fit["protocol"] == "all"]
-        tail = (f" | {100 * np.mean(every):.2f}" if every else " | -") + (
-            f" | {full[0]['seconds']:.1f} s |" if full else " | - |")
         cells = []
         for amp in AMPLITUDES:
-            loo = sorted((r["nrmse"], r["temperature_C"]) for r in rows if r["law"] == f and r["amplitude"] == amp
-                         and r["protocol"] == "loo" and r["nrmse"] is not None)
-            if not loo:
-                cells.append("-")
-                continue
-            worst, at = loo[-1]
-            rest = f"; ≤ {100 * loo[-2][0]:.2f} elsewhere" if len(loo) > 1 else ""
-            cells.append(f"{100 * worst:.2f} ({at:+g} °C{rest})")
-        lines.append(f"| {FAMILY_LABELS.get(f, f)} | " + " | ".join(cells) + tail)
-    means = {f: np.mean([r["nrmse"] for r in rows if r["law"] == f and r["protocol"] == "loo"
-                         and r["nrmse"] is not None]) for f in families}
-    means = {f: m for f, m in means.items() if np.isfinite(m)}
-    if means:
-        chosen = min(means, key=means.get)
-        lines.append(f"\nLowest mean held-out error over every left-out temperature and amplitude (the selection "
-                     f"rule): **{FAMILY_LABELS.get(chosen, chosen)}**.")
+            loo = sorted((r["nrmse"], r["temperature_C"]) for r in _loo(rows, f, interior, amp))
+            cells.append(f"{100 * loo[-1][0]:.2f} ({loo[-1][1]:+g} °C)" if loo else "-")
+        cells.append(f"{100 * scores[f]:.2f}" if f in scores else "-")
+        cells += [_fold_cells(rows, f, T) for T in (near, warmest) if T is not None]
+        cells.append(f"{full[0]['seconds']:.1f} s" if full else "-")
+        lines.append(f"| {FAMILY_LABELS.get(f, f)} | " + " | ".join(cells) + " |")
+    listed = ", ".join(f"{T:+g}" for T in interior)
+    lines.append(f"\nWorst held-out NRMSE of B (%) over the interior temperatures ({listed} °C) per amplitude; the "
+                 "folds near Tc give major / mid / minor.")
+    if scores:
+        chosen = min(scores, key=scores.get)
+        lines.append(f"\nLowest mean held-out error over the interior temperatures and every amplitude (the selection "
+                     f"rule): **{FAMILY_LABELS.get(chosen, chosen)}** ({100 * scores[chosen]:.2f} %).")
+        lines += ["", "Where the laws predict near Tc, and where none does (target "
+                  f"{100 * NEAR_TC_TARGET:.0f} % at every amplitude):", ""] + near_tc_words(study, families)
         # beside it, the best law of the other model (domain wall or HEM), for comparison
-        other_model = [f for f in means if FAMILIES[f].model != FAMILIES[chosen].model]
-        compared = [chosen] + ([min(other_model, key=means.get)] if other_model else [])
+        other_model = [f for f in scores if FAMILIES[f].model != FAMILIES[chosen].model]
+        compared = [chosen] + ([min(other_model, key=scores.get)] if other_model else [])
         lines += ["", "Each left-out temperature, the chosen law and the best of the other model:", "",
                   per_temperature_table(study, compared)]
-    lines.append(f"\nNRMSE of B in %, worst held-out temperature per amplitude. Fit times: wall clock, one "
-                 f"process on {os.cpu_count()} cores at 1-min load average {study.get('load_average', float('nan')):.1f}.")
+    load = study.get("load_average", float("nan"))
+    lines.append(f"\nNRMSE of B in %. Fit times: wall clock, one process on {os.cpu_count()} cores at 1-min load "
+                 f"average {load:.1f}.")
+    if study.get("protocol"):
+        lines += ["", "How the records were taken (`record_protocol`, from the raw records):", "",
+                  protocol_table(study["protocol"])]
     return "\n".join(lines)
 
 
@@ -745,6 +883,8 @@ def build_parser():
     p.add_argument("--quick", action="store_true", help="coarser subsampling, two laws, fewer hold-outs")
     p.add_argument("--model", choices=sorted(MODEL_FAMILIES), default="auto",
                    help="laws of the domain-wall model (6), of the homogenized energy model, or both (default)")
+    p.add_argument("--from-results", default=None, metavar="JSON",
+                   help="rebuild the tables from a study written before (results.json), without fitting")
     p.add_argument("--no-artifacts", action="store_true",
                    help="do not write experiments/results/gd_temperature or docs/figures/gd_temperature")
     return p
@@ -754,6 +894,19 @@ def bad_input(problem) -> None:
     """Bad input: one line on stderr, exit status 2."""
     print(f"gd_temperature: error: {problem}", file=sys.stderr)
     raise SystemExit(2)
+
+
+def rebuild_tables(args, families) -> int:
+    """``--from-results JSON``: the tables of a study written before, rebuilt with this version's summary (the
+    selection rule, the near-Tc words, the protocol check of ``--data``), printed; nothing is fitted."""
+    try:
+        study = json.loads(Path(args.from_results).read_text())
+        study["protocol"] = record_protocol(args.data)
+    except (OSError, ValueError, KeyError) as exc:
+        bad_input(f"--from-results {args.from_results}: {exc}")
+    families = [f for f in families if any(r["law"] == f for r in study["rows"])]
+    print(markdown_table(study, families) + "\n" + summary_table(study, families))
+    return 0
 
 
 def main(argv=None) -> int:
@@ -770,6 +923,8 @@ def main(argv=None) -> int:
         bad_input(f"--data needs at least 3 temperatures, got {len(temps)}")
     interior = temps[1:-1]
     families = MODEL_FAMILIES[args.model]
+    if args.from_results:
+        return rebuild_tables(args, families)
     if args.quick:  # the paper's law and one smooth law of each model asked for
         families = tuple(f for f in ("eq4", "smooth", "hem_smooth") if f in families)[:2]
     # every interior temperature, and the warmest (nearest the Curie point: an extrapolation towards Tc)
@@ -778,11 +933,12 @@ def main(argv=None) -> int:
     study = run_study(records, families, holdouts, predict_records, max_nfev=60 if args.quick else 200)
     study["total_seconds"] = time.perf_counter() - start
     study["load_average"] = os.getloadavg()[0]
+    study["protocol"] = record_protocol(args.data)
     study["settings"] = {"stride": stride, "anhysteretic": ANHYSTERETIC, "alpha": 0.0, "Tc_K": GD_CURIE_K,
                          "T_ref_K": T_REF_K, "score": "NRMSE of B over the loop part (first positive peak on)",
                          "data": str(args.data), "predict": args.predict, "quick": bool(args.quick)}
     print(f"total {study['total_seconds']:.1f} s")
-    table = markdown_table(study, families)
+    table = markdown_table(study, families) + "\n" + summary_table(study, families) + "\n"
     print(table)
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
@@ -796,7 +952,8 @@ def main(argv=None) -> int:
                 and not args.predict):
             from experiments.report_markdown import update_readme
 
-            update_readme(ROOT / "docs" / "results" / "real-loops.md", summary_table(study, families), area="gd-summary")
+            update_readme(ROOT / "docs" / "results" / "real-loops.md", summary_table(study, families),
+                          area="gd-summary")
         held = holdouts[-1] if holdouts else temps[0]  # the held-out temperature nearest Tc
         if holdouts:
             make_figure(records, study, families, held, FIGURES_DIR / f"gd_temperature{suffix}.png")
