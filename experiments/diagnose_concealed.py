@@ -38,7 +38,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from hyst_gym.diagnose import EFFECTS, GENERATOR_EFFECTS, diagnose
-from hyst_gym.diagnose.identifiability import CHANNEL_SETS, MECHANICAL_EFFECTS
+from hyst_gym.diagnose.effects import CHANNEL_SETS, MECHANICAL_EFFECTS
 from hyst_gym.diagnose.make_recording import make_recording_with_truth
 
 ROOT = Path(__file__).resolve().parent
@@ -82,7 +82,8 @@ def cases(generators, channel_sets, seeds, first_seed):
             effects = [(e, True) for e in inside] + [(e, False) for e in outside]
         for channels in channel_sets:
             for effect, in_vocabulary in effects:
-                if channels == "magnetization" and (effect in MECHANICAL_EFFECTS or _displacement_only(generator, effect)):
+                if channels == "magnetization" and (effect in MECHANICAL_EFFECTS
+                                                    or _displacement_only(generator, effect)):
                     continue
                 for seed in range(first_seed, first_seed + seeds):
                     out.append((generator, channels, effect, in_vocabulary, seed))
@@ -252,7 +253,8 @@ def before_after(before, rows):
 
             nones = [(b, a) for b, a in pairs if b["effect"] == "none"]
             table.append({"group": f"{generator}/{channels}", "n": len(pairs),
-                          "right": [sum(scored(b) == "right" for b, _ in pairs), sum(scored(a) == "right" for _, a in pairs)],
+                          "right": [sum(scored(b) == "right" for b, _ in pairs),
+                                    sum(scored(a) == "right" for _, a in pairs)],
                           "wrong_names": [sum(scored(b) == "wrong_name" for b, _ in pairs),
                                           sum(scored(a) == "wrong_name" for _, a in pairs)],
                           "none_flagged": [sum(b["verdict"] != "none" for b, _ in nones),

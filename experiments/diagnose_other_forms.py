@@ -247,7 +247,10 @@ def before_after(before_rows, after_rows) -> list[str]:
         # both scored by today's yardstick (outcome() reads the case's right verdicts now)
         scored = [(outcome(b["case"], b["verdict"], b.get("tied") or []),
                    outcome(a["case"], a["verdict"], a.get("tied") or [])) for b, a in group]
-        count = lambda which, names: sum(s[which] in names for s in scored)  # noqa: E731
+
+        def count(which, names, scored=scored):
+            return sum(s[which] in names for s in scored)
+
         lines.append(f"| {case} | {len(group)} | {count(0, ('right',))} → {count(1, ('right',))} | "
                      f"{count(0, ('right', 'ambiguous_with_truth'))} → {count(1, ('right', 'ambiguous_with_truth'))} | "
                      f"{count(0, ('wrong_name',))} → {count(1, ('wrong_name',))} | "

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from experiments.diagnose_concealed import RESULTS, RUNS, load_rows, make
 from hyst_gym.diagnose import diagnose
-from hyst_gym.diagnose.core import DEFAULT_WORKERS
+from hyst_gym.diagnose.pipeline import DEFAULT_WORKERS
 
 
 def slowest_rows(rows, count):

@@ -890,6 +890,12 @@ def _draw_effect(name: str, base: BaseDraw, reference: dict) -> EffectDraw:
     if name == "small_loop":
         initial_slope = mat.Ms * mat.slope_factor / mat.a
         return EffectDraw(name, (("chi_rev", rng.uniform(0.4, 0.8) * initial_slope),), "chi_rev", 1.5 * initial_slope)
+    return _draw_form_effect(name, rng)
+
+
+def _draw_form_effect(name: str, rng) -> EffectDraw:
+    """The effects of :func:`_draw_effect` that the tool names by a family of another form, and the one
+    outside its vocabulary (same stream, drawn in the same order)."""
     if name == "sensor_nonlinearity":
         values = []
         for ch in ("m", "x"):

@@ -419,7 +419,6 @@ def setup(case: str, seed: int, n_samples: int | None = None) -> Setup:
     numerics = _numerics(case, seed)
     if case == "none_other_numerics":
         form = f"{numerics['method'].lower()}_{numerics['hold']}"
-    mat = base.material
     duration = base.conditions.duration
     knob, knob_max, p = None, math.inf, {}
     if case == "delta_e_shifted":
@@ -471,7 +470,8 @@ def setup(case: str, seed: int, n_samples: int | None = None) -> Setup:
     elif case == "two_phase_rod":
         def ratio():
             return ir._log_uniform(rng, 1.5, 3.0) ** rng.choice([-1.0, 1.0])
-        p = {"w": rng.uniform(0.25, 0.5), "a_ratio": ratio(), "k_ratio": ratio(), "c_ratio": ir._log_uniform(rng, 0.5, 2.0),
+        p = {"w": rng.uniform(0.25, 0.5), "a_ratio": ratio(), "k_ratio": ratio(),
+             "c_ratio": ir._log_uniform(rng, 0.5, 2.0),
              "Ms_ratio": _choice(rng, (rng.uniform(0.6, 0.85), rng.uniform(1.15, 1.4)))}
         knob, knob_max = "w", 0.5
     return Setup(case=case, seed=int(seed), base=base, time=time, field=field, excitation=info,
@@ -748,7 +748,8 @@ def main(argv=None) -> int:
         recording, _ = write(args.case, args.seed, args.channels, args.out, n_samples=args.samples,
                              truth_path=args.truth)
     except (ValueError, OSError) as error:
-        parser.error(str(error) if isinstance(error, ValueError) else f"cannot write {error.filename}: {error.strerror}")
+        parser.error(str(error) if isinstance(error, ValueError)
+                     else f"cannot write {error.filename}: {error.strerror}")
     print(f"wrote {args.out} ({recording.size} samples; columns time, field, {', '.join(recording.channels)})")
     return 0
 

@@ -10,9 +10,10 @@ Command line: ``hyst-gym diagnose RECORDING.csv [--model ...] [--json R.json] [-
 ``hyst-gym make-recording --effect ID --seed S [--strength X] [--output ...] --out FILE.csv``.
 """
 
-from .core import Report, diagnose
+from .pipeline import diagnose
+from .results import Report
 from .make_recording import GENERATOR_EFFECTS, make_recording
-from .model import EFFECTS
+from .effects import EFFECTS
 from .recording import Recording, read_recording, write_recording
 from .report import write_json, write_plots
 

@@ -5,13 +5,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .core import diagnose
+from .pipeline import diagnose
 from .model import TRANSDUCERS
 from .report import write_json, write_plots
 
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("recording", type=Path, help="recording CSV (format: docs/recording-format.md), optional sidecar .json beside it")
+    parser.add_argument("recording", type=Path,
+                        help="recording CSV (format: docs/recording-format.md), optional sidecar .json beside it")
     parser.add_argument("--model", default="lumped", choices=[t for t in TRANSDUCERS if t != "none"],
                         help="base transducer model for a displacement channel (default lumped, eq. 13)")
     parser.add_argument("--anhysteretic", default="ising", choices=("ising", "langevin"),

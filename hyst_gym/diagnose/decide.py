@@ -11,7 +11,7 @@ An accepted candidate is then *plausible* only if
    refitted alone, the rest held at the candidate's fit): a real effect has one value, while
    a vocabulary effect that stands in for something outside the vocabulary is pulled to
    different values by the different excitation in each block (for a flexible family, the
-   coefficient the record determines best: :data:`FAMILY_EFFECTS`);
+   coefficient the record determines best: its ``identified_by`` in the registry, :mod:`.effects`);
 3. a bias field shows in the data: ``field_bias`` is rejected when its H0 is much larger than
    the horizontal offset of the recorded loop itself;
 4. a static map is monotone: an ``input_map`` or ``sensor_map`` whose output falls as its input
@@ -79,9 +79,10 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from .effects import effect as registered, static_map_slopes
 from .fit import local_fit
 from .identifiability import separating_measurement
-from .model import EFFECT_PARAMETERS, SENSOR_MAP_NAMES, Model
+from .model import Model
 
 ACCEPT_IMPROVEMENT = 0.20
 ACCEPT_DELTA_BIC = 10.0
@@ -104,17 +105,8 @@ BLOCKS = 3
 CONSISTENCY_SPREAD = 0.5
 #: ...or within this many of their own standard errors of each other.
 CONSISTENCY_SIGMAS = 3.0
-#: Parameters whose bounds are search ranges rather than physical walls (a fit may end there).
-SEARCH_RANGES_ONLY = ("tau_th", "g2", "damping2", "input_saturation", "input_saturation_negative",
-                      "heating_exponent")
-#: The parameter each effect is identified by (refitted per block).
-MAIN_PARAMETER = {"field_bias": "H0", "eddy_current": "k_e", "thermal_drift": "heating",
-                  "quadratic_magnetostriction": "zeta_q", "rod_dynamics": "f2", "delta_e": "delta_e",
-                  "small_loop": "chi_r"}
-#: Families whose shape is spread over several coefficients: the block check refits the one the record
-#: determines best (largest |value|/sigma), which a real map or drift shares across the blocks while a
-#: family bent to mimic something else is pulled to different values by each block's excitation.
-FAMILY_EFFECTS = ("input_map", "sensor_map", "sensor_drift", "mains_pickup")
+#: Which parameter each effect is identified by, which of its bounds are search ranges only (a fit may end
+#: there) and which other checks apply: fields of its entry in the registry (:mod:`.effects`).
 
 
 @dataclass
@@ -130,78 +122,53 @@ class Plausibility:
         self.reasons.append(reason)
 
 
-def sensor_lag_parameter(model: Model) -> str:
-    return "tau_x" if model.parameters.get("tau_x") is not None and model.parameters["tau_x"].free else "tau_m"
-
-
-def check_plausibility(candidate, weights, blocks: int = BLOCKS) -> Plausibility:
-    """The three checks of the module docstring for one accepted candidate."""
+def check_plausibility(candidate, noise, blocks: int = BLOCKS) -> Plausibility:
+    """The checks of the module docstring for one accepted candidate."""
     out = Plausibility()
     fit = candidate.fit
+    effect = registered(candidate.effect)
+    _check_bounds(out, effect, fit)
+    main = effect.main_parameter(fit)
+    if main is not None:
+        values, sigmas = block_estimates(fit, main, noise, blocks)
+        out.block_values = values
+        if not consistent(values, sigmas):
+            out.reject(f"{main} disagrees across {blocks} time blocks of the record "
+                       f"({', '.join(f'{v:.3g}' for v in values)}): one physical effect would give one value")
+    for what, slope in static_map_slopes(effect.name, fit.values, fit.model.channels):
+        if np.min(slope) <= 0.0:
+            out.reject(f"the fitted {what} is not monotone over the recorded range (slope down to "
+                       f"{np.min(slope):.2g}): no amplifier or sensor reads that way")
+    if effect.loop_offset is not None:
+        _check_loop_offset(out, fit, fit.values[effect.loop_offset])
+    return out
+
+
+def _check_bounds(out: Plausibility, effect, fit):
+    """Reject a fit whose parameter sits at a bound of its physical range (search ranges exempt)."""
     model = fit.model
-    for name in EFFECT_PARAMETERS[candidate.effect]:
+    for name in effect.parameter_names:
         p = model.parameters.get(name)
-        if p is None or not p.free or name in SEARCH_RANGES_ONLY:
+        if p is None or not p.free or name in effect.search_ranges:
             continue
         value = fit.values[name]
         span = p.upper - p.lower
         if min(abs(value - p.lower), abs(p.upper - value)) < 1e-3 * span and value != 0.0:
             out.reject(f"{name} = {value:.4g} sits at the bound of its physical range "
                        f"[{p.lower:.4g}, {p.upper:.4g}]")
-    if candidate.effect == "sensor_lag":
-        main = sensor_lag_parameter(model)
-    elif candidate.effect in FAMILY_EFFECTS:
-        main = best_determined(fit, EFFECT_PARAMETERS[candidate.effect])
-    else:
-        main = MAIN_PARAMETER.get(candidate.effect)
-    if main is not None:
-        values, sigmas = block_estimates(fit, main, weights, blocks)
-        out.block_values = values
-        if not consistent(values, sigmas):
-            out.reject(f"{main} disagrees across {blocks} time blocks of the record "
-                       f"({', '.join(f'{v:.3g}' for v in values)}): one physical effect would give one value")
-    if candidate.effect in ("input_map", "sensor_map"):
-        for what, slope in static_map_slopes(candidate.effect, fit.values, model.channels):
-            if np.min(slope) <= 0.0:
-                out.reject(f"the fitted {what} is not monotone over the recorded range (slope down to "
-                           f"{np.min(slope):.2g}): no amplifier or sensor reads that way")
-    if candidate.effect == "field_bias":
-        visible = visible_loop_offset(model.recording)
-        bias = fit.values["H0"]
-        h_max = float(np.max(np.abs(model.recording.field)))
-        if visible is not None and abs(bias) > 3.0 * abs(visible) + 0.01 * h_max:
-            out.reject(f"a bias field of {bias:.3g} A/m would shift the recorded loop, but the loop is centred "
-                       f"within {abs(visible):.2g} A/m")
-    return out
 
 
-def best_determined(fit, names):
-    """The free parameter among ``names`` with the largest |value|/sigma in ``fit`` (None if none is free)."""
-    scored = [(abs(fit.values[n]) / (fit.uncertainties.get(n) or np.inf), n) for n in names
-              if n in fit.model.parameters and fit.model.parameters[n].free]
-    scored = [(z if np.isfinite(z) else 0.0, n) for z, n in scored]
-    return max(scored)[1] if scored else None
+def _check_loop_offset(out: Plausibility, fit, bias):
+    """Reject a bias field that would shift the recorded loop by more than the loop shows."""
+    recording = fit.model.recording
+    visible = visible_loop_offset(recording)
+    h_max = float(np.max(np.abs(recording.field)))
+    if visible is not None and abs(bias) > 3.0 * abs(visible) + 0.01 * h_max:
+        out.reject(f"a bias field of {bias:.3g} A/m would shift the recorded loop, but the loop is centred "
+                   f"within {abs(visible):.2g} A/m")
 
 
-def static_map_slopes(effect, values, channels, points: int = 201):
-    """``[(what, slope over the normalized input -1..1)]`` of an ``input_map`` (its derivative
-    relative to the small-signal gain) or of each channel's ``sensor_map``."""
-    u = np.linspace(-1.0, 1.0, points)
-    if effect == "input_map":
-        q, c, s_pos, s_neg = (values[n] for n in EFFECT_PARAMETERS["input_map"])
-        s = np.where(u >= 0.0, s_pos, s_neg)
-        root = np.sqrt(1.0 + s * u ** 2)
-        # d/du [u*(1 + q*u + c*u^2)/sqrt(1 + s*u^2)], s constant on each side (model.mapped_field)
-        slope = (1.0 + 2 * q * u + 3 * c * u ** 2) / root - s * u ** 2 * (1.0 + q * u + c * u ** 2) / root ** 3
-        return [("input map", slope)]
-    out = []
-    for channel in channels:
-        q2, q3 = (values[n] for n in SENSOR_MAP_NAMES[channel])
-        out.append((f"{channel} sensor map", 1.0 + 2 * q2 * u + 3 * q3 * u ** 2))
-    return out
-
-
-def block_estimates(fit, name, weights, blocks):
+def block_estimates(fit, name, noise, blocks):
     """``name`` refitted alone on each of ``blocks`` contiguous time blocks (whole record)."""
     model = fit.model
     only = {n: (p if n == name else replace(p, free=False)) for n, p in model.parameters.items()}
@@ -212,7 +179,7 @@ def block_estimates(fit, name, weights, blocks):
     for lo, hi in zip(edges[:-1], edges[1:]):
         mask = np.zeros(n, dtype=bool)
         mask[lo:hi] = True
-        result = local_fit(block_model, weights, mask, fit.values, max_nfev=12)
+        result = local_fit(block_model, noise, mask, fit.values, max_nfev=12)
         values.append(float(result.values[name]))
         sigmas.append(float(result.uncertainties.get(name, np.nan)))
     return values, sigmas
@@ -335,42 +302,60 @@ def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False, b
              f"{'; '.join(c.plausibility.reasons)}" for c in rejected]
     best_improvement = max([c.improvement for c in candidates] + [0.0])
     if plausible:
-        best = plausible[0]
-        tied = [best] + [c for c in plausible[1:] if tied_with(c, best)]
-        others = [c for c in candidates if all(c is not t for t in tied)]  # identity: fits hold arrays
-        runner = max([reduction(c, base_heldout) for c in others] + [0.0])
-        if naming_margin(best) == 0.0 and best.heldout_rmse > EXPLAINED_RMSE:
-            notes.append(f"{best.effect} explains part of the mismatch ({100 * best.improvement:.0f} % lower "
-                         f"held-out RMSE) but leaves {best.heldout_rmse:.2f} noise units")
-            # margin to the nearest alternative: naming that effect after all
-            confidence = (NAMING_IMPROVEMENT - best.improvement) / NAMING_IMPROVEMENT
-            return Decision("unexplained", float(np.clip(confidence, 0.0, 1.0)), notes=notes)
-        weakest = min(reduction(c, base_heldout) for c in tied)
-        # margins to both alternatives: another effect (the runner-up), and 'unexplained'
-        confidence = float(np.clip(min(1.0 - max(runner, 0.0) / weakest, min(naming_margin(c) for c in tied)),
-                                   0.0, 1.0))
-        if len(tied) == 1:
-            return Decision(best.effect, confidence, chosen=best, tied=tied, notes=notes)
-        effects = [c.effect for c in tied]
-        return Decision("ambiguous", confidence, chosen=best, tied=tied,
-                        advice=separating_measurement(channels, effects), notes=notes)
+        return _name(plausible, candidates, base_heldout, channels, notes)
     if mechanics_pinned and base_residual is not None:
         freed = freeing_candidates(candidates, base_residual)
         if freed:
-            best = freed[0]
-            tied = [best] + [c for c in freed[1:] if tied_with(c, best)]
-            notes.append(f"the base model explains the record only with its mechanics pinned at their prior; "
-                         f"{', '.join(c.effect for c in tied)} explain{'s' if len(tied) == 1 else ''} it as well "
-                         f"({best.heldout_rmse:.2f} noise units held out) with the mechanics inside it")
-            # evidence from the prior, not from a lower held-out error: an even call at most
-            if len(tied) == 1:
-                return Decision(best.effect, NONE_CONFIDENCE_CEILING, chosen=best, tied=tied, notes=notes)
-            return Decision("ambiguous", NONE_CONFIDENCE_CEILING, chosen=best, tied=tied,
-                            advice=separating_measurement(channels, [c.effect for c in tied]), notes=notes)
+            return _name_freed(freed, channels, notes)
     if base_heldout > UNEXPLAINED_RMSE:
         # margins to naming the best candidate (rejected ones included) and to 'none'
         confidence = min(1.0 - best_improvement / NAMING_IMPROVEMENT, 1.0 - UNEXPLAINED_RMSE / base_heldout)
         return Decision("unexplained", float(np.clip(confidence, 0.0, 1.0)), notes=notes)
+    return _none_or_structure(base_heldout, best_improvement, mechanics_pinned, base_structure, notes)
+
+
+def _name(plausible, candidates, base_heldout, channels, notes) -> Decision:
+    """A plausible candidate explains most of the mismatch: its name, or a tie (``ambiguous``), or
+    ``unexplained`` if it explains only part of it."""
+    best = plausible[0]
+    tied = [best] + [c for c in plausible[1:] if tied_with(c, best)]
+    others = [c for c in candidates if all(c is not t for t in tied)]  # identity: fits hold arrays
+    runner = max([reduction(c, base_heldout) for c in others] + [0.0])
+    if naming_margin(best) == 0.0 and best.heldout_rmse > EXPLAINED_RMSE:
+        notes.append(f"{best.effect} explains part of the mismatch ({100 * best.improvement:.0f} % lower "
+                     f"held-out RMSE) but leaves {best.heldout_rmse:.2f} noise units")
+        # margin to the nearest alternative: naming that effect after all
+        confidence = (NAMING_IMPROVEMENT - best.improvement) / NAMING_IMPROVEMENT
+        return Decision("unexplained", float(np.clip(confidence, 0.0, 1.0)), notes=notes)
+    weakest = min(reduction(c, base_heldout) for c in tied)
+    # margins to both alternatives: another effect (the runner-up), and 'unexplained'
+    confidence = float(np.clip(min(1.0 - max(runner, 0.0) / weakest, min(naming_margin(c) for c in tied)),
+                               0.0, 1.0))
+    return _named_or_tied(best, tied, channels, confidence, notes)
+
+
+def _named_or_tied(best, tied, channels, confidence, notes) -> Decision:
+    """The single name when nothing ties with ``best``, else ``ambiguous`` with the separating measurement."""
+    if len(tied) == 1:
+        return Decision(best.effect, confidence, chosen=best, tied=tied, notes=notes)
+    return Decision("ambiguous", confidence, chosen=best, tied=tied,
+                    advice=separating_measurement(channels, [c.effect for c in tied]), notes=notes)
+
+
+def _name_freed(freed, channels, notes) -> Decision:
+    """The base model explains the record only with its mechanics pinned; ``freed`` candidates explain it
+    as well with theirs inside the prior: evidence from the prior, an even call at most."""
+    best = freed[0]
+    tied = [best] + [c for c in freed[1:] if tied_with(c, best)]
+    notes.append(f"the base model explains the record only with its mechanics pinned at their prior; "
+                 f"{', '.join(c.effect for c in tied)} explain{'s' if len(tied) == 1 else ''} it as well "
+                 f"({best.heldout_rmse:.2f} noise units held out) with the mechanics inside it")
+    return _named_or_tied(best, tied, channels, NONE_CONFIDENCE_CEILING, notes)
+
+
+def _none_or_structure(base_heldout, best_improvement, mechanics_pinned, base_structure, notes) -> Decision:
+    """The base model is within ``UNEXPLAINED_RMSE``: ``none``, unless a material structure is left in its
+    residual or its mechanics are pinned (then ``unexplained``)."""
     # margins to accepting the best candidate and to 'unexplained'
     confidence = min(1.0 - best_improvement / ACCEPT_IMPROVEMENT,
                      (UNEXPLAINED_RMSE - base_heldout) / (UNEXPLAINED_RMSE - 1.0))

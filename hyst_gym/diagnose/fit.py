@@ -2,6 +2,9 @@
 
 Residuals are per channel, divided by that channel's noise level (so a perfect fit has
 residuals of unit variance), concatenated over the samples of a mask (the fitting block).
+``noise`` is always that dict: channel -> noise level (the channel's unit). A :class:`Split`
+carries what the stages share: the recording, the noise levels, the fitting and held-out blocks
+and the field step of the simulation.
 The Jacobian is by forward differences in the fitted coordinates; all perturbed parameter
 sets that change the magnetization are simulated as one bank in one compiled call
 (:func:`hyst_gym.diagnose.kernels.simulate_members`), the others reuse it.
@@ -9,13 +12,15 @@ sets that change the magnetization are simulated as one bank in one compiled cal
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.optimize
 from scipy.stats import qmc
 
-from .model import Model
+from .model import Model, noise_level
+from .recording import Recording
 
 MAGNETIC = {"a", "k", "rho", "Ms", "c", "H0", "k_e", "heating", "tau_th"}
 #: Relative tolerances (xtol, ftol) of the local fits of the candidates. The decisions downstream
@@ -52,16 +57,16 @@ class FitResult:
 class Objective:
     """Normalized residuals of ``model`` against the recording on the samples of ``mask``."""
 
-    def __init__(self, model: Model, weights: dict, mask: np.ndarray):
+    def __init__(self, model: Model, noise: dict, mask: np.ndarray):
         self.model = model
-        self.weights = weights
+        self.noise = noise
         self.mask = mask
         self.data = {ch: model.recording.output(ch) for ch in model.channels}
         self.evaluations = 0
 
     def residual_of(self, predicted: dict, mask=None) -> np.ndarray:
         mask = self.mask if mask is None else mask
-        return np.concatenate([(predicted[ch][mask] - self.data[ch][mask]) / self.weights[ch]
+        return np.concatenate([(predicted[ch][mask] - self.data[ch][mask]) / self.noise[ch]
                                for ch in self.model.channels])
 
     def residuals_many(self, values_list, mask=None) -> list[np.ndarray]:
@@ -94,7 +99,7 @@ class Objective:
         return np.nan_to_num(J)
 
 
-def local_fit(model: Model, weights: dict, mask, start: dict | None = None, max_nfev: int = 60,
+def local_fit(model: Model, noise: dict, mask, start: dict | None = None, max_nfev: int = 60,
               tolerance: float = FIT_TOLERANCE) -> FitResult:
     """Bounded trust-region least squares from ``start`` (default: the model's values), stopping at
     the relative ``tolerance`` (xtol and ftol). A fixed parameter that ``start`` sets (the mains
@@ -103,7 +108,7 @@ def local_fit(model: Model, weights: dict, mask, start: dict | None = None, max_
              if n in model.parameters and not model.parameters[n].free and v != model.parameters[n].value}
     if fixed:
         model = model.with_values(fixed)
-    objective = Objective(model, weights, mask)
+    objective = Objective(model, noise, mask)
     names = model.free_names
     values = model.values() if start is None else {**model.values(), **start}
     lower = np.array([model.parameters[n].x_bounds[0] for n in names])
@@ -142,7 +147,7 @@ def _uncertainties(model, names, x, J, sse, n):
     return out
 
 
-def global_search(model: Model, weights: dict, mask, names, n_points: int = 128, keep: int = 3,
+def global_search(model: Model, noise: dict, mask, names, n_points: int = 128, keep: int = 3,
                   seed: int = 0, linear_outputs: tuple = (), extra_starts=(), output_solver=None) -> list[dict]:
     """Score a scrambled Sobol design over the boxes of ``names``; return the ``keep`` best starts.
 
@@ -169,7 +174,7 @@ def global_search(model: Model, weights: dict, mask, names, n_points: int = 128,
                                  for n in names if n in v}) for v in extra_starts]
     # Parameter sets that break the kernel's validity (alpha*c*Man' >= 1) are skipped.
     candidates = [v for v in candidates if v["rho"] * v["c"] < 0.98]
-    objective = Objective(model, weights, mask)
+    objective = Objective(model, noise, mask)
     magnetization = model.magnetization(candidates)
     scored = []
     # design points far from the data overflow (their mechanics or sums of squares): they score
@@ -182,14 +187,14 @@ def global_search(model: Model, weights: dict, mask, names, n_points: int = 128,
             if output_solver is not None:
                 v = output_solver(v, m)
             elif linear_outputs and "displacement" in model.channels:
-                v = _solve_linear_outputs(model, v, m, weights, mask, linear_outputs)
+                v = _solve_linear_outputs(model, v, m, noise, mask, linear_outputs)
             r = objective.residual_of(model.predict(v, m))
             scored.append((float(np.nan_to_num(r @ r, nan=np.inf)), v))
     scored.sort(key=lambda item: item[0])
     return [v for _, v in scored[:keep]]
 
 
-def _solve_linear_outputs(model, values, magnetization, weights, mask, pair):
+def _solve_linear_outputs(model, values, magnetization, noise, mask, pair):
     gain_name, offset_name = pair
     data = model.recording.displacement[mask]
     trial = dict(values, **{gain_name: 1.0, offset_name: 0.0})
@@ -207,3 +212,54 @@ def _solve_linear_outputs(model, values, magnetization, weights, mask, pair):
     out[offset_name] = float(np.clip(-coef[1] / gain, model.parameters[offset_name].lower,
                                      model.parameters[offset_name].upper))
     return out
+
+
+@dataclass(frozen=True, eq=False)
+class Split:
+    """What every stage of a diagnosis shares: the recording, its noise per output channel, the
+    fitting block (the first samples) and the held-out block (the rest, only predicted), and the
+    largest field step (A/m) of the hysteresis integration."""
+
+    recording: Recording
+    noise: Mapping
+    fit_mask: np.ndarray
+    held_mask: np.ndarray
+    max_field_step: float
+
+    @classmethod
+    def of(cls, recording: Recording, holdout: float) -> "Split":
+        """The last ``holdout`` of the samples held out; noise from second differences
+        (:func:`.model.noise_level`); a field step of 1/400 of the field's span."""
+        n = recording.size
+        cut = int(round(n * (1.0 - holdout)))
+        fit_mask = np.zeros(n, dtype=bool)
+        fit_mask[:cut] = True
+        noise = {ch: noise_level(recording.output(ch)) for ch in recording.channels}
+        field_span = float(np.ptp(recording.field)) or 1.0
+        return cls(recording, noise, fit_mask, ~fit_mask, max(field_span / 400.0, 1e-9))
+
+    @property
+    def cut(self) -> int:
+        """Index of the first held-out sample."""
+        return int(np.count_nonzero(self.fit_mask))
+
+    def fit(self, model: Model, start: dict | None = None, max_nfev: int = 60,
+            tolerance: float = FIT_TOLERANCE) -> FitResult:
+        """:func:`local_fit` of ``model`` on the fitting block."""
+        return local_fit(model, self.noise, self.fit_mask, start, max_nfev=max_nfev, tolerance=tolerance)
+
+    def heldout(self, model: Model, values: dict) -> tuple[float, dict, np.ndarray]:
+        """:func:`residual` on the held-out block."""
+        return residual(model, values, self.noise, self.held_mask)
+
+
+def residual(model: Model, values, noise, mask) -> tuple[float, dict, np.ndarray]:
+    """(RMSE, RMSE per channel, residual with the channels concatenated) on ``mask``, in noise units."""
+    predicted = model.predict(values)
+    per_channel, total = {}, []
+    for ch in model.channels:
+        r = (predicted[ch][mask] - model.recording.output(ch)[mask]) / noise[ch]
+        per_channel[ch] = float(np.sqrt(np.mean(r ** 2)))
+        total.append(r)
+    joined = np.concatenate(total)
+    return float(np.sqrt(np.mean(joined ** 2))), per_channel, joined

@@ -13,7 +13,8 @@ and tip displacement x. The three channel sets see different things:
   M too is magnetic (eddy currents) or a sensor lag common to both.
 
 ``CONFUSABLE`` lists, per channel set, the pairs of vocabulary effects whose signatures
-overlap, with the measurement that would separate them. The decision stage uses it to word
+overlap, with the measurement that would separate them (each effect's ``confusable`` in the
+registry, :mod:`.effects`). The decision stage uses it to word
 an ``ambiguous`` verdict; it never uses it to pick a winner.
 """
 
@@ -21,68 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
-CHANNEL_SETS = ("magnetization", "displacement", "both")
-
-#: Effects that act on the displacement path only (invisible in a magnetization-only record).
-MECHANICAL_EFFECTS = ("quadratic_magnetostriction", "rod_dynamics", "delta_e")
-#: Effects whose signature needs a real time axis (rate, delay or resonance).
-RATE_EFFECTS = ("eddy_current", "sensor_lag", "rod_dynamics")
-
-_RECORD_M = "record the magnetization (a pick-up coil) beside the displacement"
-_BROADBAND = "excite above the first resonance (a broadband or chirp drive up to the sensor's Nyquist frequency)"
-_TEMPERATURE = "record the coil or rod temperature"
-_AMPLITUDES = "record loops at several amplitudes, down to a tenth of the largest (small loops show the low-field susceptibility)"
-_SLOW = "repeat the record at a lower and a higher drive frequency (rate effects scale with frequency)"
-_CALIBRATE_SENSOR = "calibrate the sensor against a reference (a static map of the sensor does not follow the drive)"
-_AFTER_MECHANICS = (_BROADBAND + ": a sensor's static map acts after the mechanics, a magnetostriction or "
-                    "stiffness law before them")
-
-CONFUSABLE = {
-    "magnetization": {
-        frozenset({"eddy_current", "sensor_lag"}): _SLOW + "; a sensor lag is a fixed delay, eddy loss widens the loop",
-        frozenset({"field_bias", "anhysteretic_shape"}): "record a loop symmetric about H = 0 at two amplitudes",
-        frozenset({"thermal_drift", "anhysteretic_shape"}): _TEMPERATURE,
-        frozenset({"small_loop", "anhysteretic_shape"}): _AMPLITUDES,
-        frozenset({"small_loop", "field_bias"}): _AMPLITUDES,
-        frozenset({"sensor_map", "anhysteretic_shape"}): _CALIBRATE_SENSOR,
-        frozenset({"input_map", "anhysteretic_shape"}): "record the coil current and the field (a Hall probe) together",
-        frozenset({"sensor_drift", "thermal_drift"}): _TEMPERATURE,
-    },
-    "displacement": {
-        frozenset({"small_loop", "anhysteretic_shape"}): _AMPLITUDES + ", and " + _RECORD_M,
-        frozenset({"small_loop", "quadratic_magnetostriction"}): _RECORD_M,
-        frozenset({"small_loop", "delta_e"}): _RECORD_M,
-        frozenset({"small_loop", "field_bias"}): _RECORD_M,
-        frozenset({"sensor_lag", "rod_dynamics"}): _BROADBAND + ", or " + _RECORD_M,
-        frozenset({"sensor_lag", "eddy_current"}): _RECORD_M,
-        frozenset({"rod_dynamics", "eddy_current"}): _RECORD_M,
-        frozenset({"field_bias", "quadratic_magnetostriction"}): _RECORD_M,
-        frozenset({"field_bias", "anhysteretic_shape"}): _RECORD_M,
-        frozenset({"quadratic_magnetostriction", "anhysteretic_shape"}): _RECORD_M,
-        frozenset({"delta_e", "quadratic_magnetostriction"}): _RECORD_M + ", and " + _BROADBAND,
-        frozenset({"delta_e", "anhysteretic_shape"}): _RECORD_M,
-        frozenset({"delta_e", "field_bias"}): _RECORD_M,
-        frozenset({"thermal_drift", "anhysteretic_shape"}): _TEMPERATURE,
-        frozenset({"thermal_drift", "delta_e"}): _TEMPERATURE,
-        frozenset({"sensor_map", "quadratic_magnetostriction"}): _AFTER_MECHANICS,
-        frozenset({"sensor_map", "delta_e"}): _AFTER_MECHANICS,
-        frozenset({"sensor_map", "anhysteretic_shape"}): _RECORD_M + ", or " + _CALIBRATE_SENSOR,
-        frozenset({"sensor_map", "field_bias"}): _RECORD_M,
-        frozenset({"sensor_map", "small_loop"}): _RECORD_M,
-        frozenset({"input_map", "anhysteretic_shape"}): _RECORD_M,
-        frozenset({"input_map", "quadratic_magnetostriction"}): _RECORD_M,
-        frozenset({"sensor_drift", "thermal_drift"}): _TEMPERATURE,
-    },
-    "both": {
-        frozenset({"sensor_lag", "rod_dynamics"}): _BROADBAND,
-        frozenset({"delta_e", "rod_dynamics"}): _BROADBAND + " at two bias fields",
-        frozenset({"small_loop", "anhysteretic_shape"}): _AMPLITUDES,
-        frozenset({"thermal_drift", "anhysteretic_shape"}): _TEMPERATURE,
-        frozenset({"sensor_map", "quadratic_magnetostriction"}): _AFTER_MECHANICS,
-        frozenset({"sensor_map", "delta_e"}): _AFTER_MECHANICS,
-        frozenset({"sensor_drift", "thermal_drift"}): _TEMPERATURE,
-    },
-}
+# The channel sets, the effects each cannot show (``mechanical``), the rate-dependent ones and the confusable
+# pairs with their separating measurements are fields of the registry (:mod:`.effects`); these are its views.
+from .effects import CHANNEL_SETS, CONFUSABLE, MECHANICAL_EFFECTS, RATE_EFFECTS
 
 
 def channel_set(channels) -> str:
@@ -150,7 +92,7 @@ def measurement_for(names, values) -> str:
     return "a longer record with a richer drive"
 
 
-def unidentified_directions(fit, weights, mask) -> list:
+def unidentified_directions(fit, noise, mask) -> list:
     """Directions of the fitted parameters that the record does not determine (Fisher information).
 
     The Gauss-Newton covariance ``sigma^2 (J^T J)^-1`` of the fit (J: the Jacobian of the normalized
@@ -165,7 +107,7 @@ def unidentified_directions(fit, weights, mask) -> list:
     if not names:
         return []
     x = model.x_from_values(fit.values)
-    objective = Objective(model, weights, mask)
+    objective = Objective(model, noise, mask)
     J = objective.jacobian(x)
     dof = max(J.shape[0] - len(names), 1)
     covariance = np.linalg.pinv(J.T @ J) * (fit.sse / dof)

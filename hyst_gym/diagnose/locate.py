@@ -3,13 +3,19 @@
 Every statistic works on the normalized residual (residual / channel noise level) of the
 whole recording. Significance levels assume independent samples; a residual that is
 not white makes them optimistic, which is why they only rank places, never decide the
-verdict on their own (the decision is by held-out error, :mod:`hyst_gym.diagnose.core`).
+verdict on their own (the decision is by held-out error, :mod:`hyst_gym.diagnose.decide`).
+:func:`locate_mismatch` gathers them for the base fit.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from scipy import stats
+
+from .fit import FitResult, local_fit
+from .model import Model
 
 N_BINS = 10
 
@@ -145,3 +151,68 @@ def structured_power(residual, bootstrap: int = STRUCTURE_BOOTSTRAP, seed: int =
     lo, hi = np.percentile(shares, [2.5, 97.5])
     return {"share": share, "ci95": [float(lo), float(hi)], "structured_power": structured, "noise_power": noise,
             "block_samples": block}
+
+
+def locate_mismatch(base: FitResult, noise, windows: int = 4) -> dict:
+    """Stage 2: where the base model's residual lives, and how significant it is."""
+    model = base.model
+    rec = model.recording
+    predicted = model.predict(base.values)
+    excess = {}
+    residuals = {}
+    for ch in model.channels:
+        r = (predicted[ch] - rec.output(ch)) / noise[ch]
+        residuals[ch] = r
+        excess[ch] = float(np.mean(r ** 2))
+    channel = max(excess, key=excess.get)
+    r = residuals[channel]
+    magnetization = model.magnetization([base.values])[:, 0]
+    rate = np.gradient(rec.field, rec.time)
+    features = [
+        binned_dependence(r, rec.time, "time (s)"),
+        binned_dependence(r, rec.field, "field H (A/m)"),
+        binned_dependence(r, rate, "field rate dH/dt (A/m/s)"),
+        binned_dependence(r, np.abs(magnetization), "|M| (A/m)"),
+        binned_dependence(r, magnetization ** 2, "M^2 (A^2/m^2)"),
+        binned_dependence(r, time_since_reversal(rec.time, rec.field), "time since last reversal (s)"),
+    ]
+    drift = window_refits(base, noise, windows)
+    white = whiteness(r)
+    xcorr = input_cross_correlation(r, rec.field)
+    bands = frequency_bands(r, rec.time)
+    worst_band = max(bands, key=lambda b: b["relative_density"])
+    summary = (f"channel '{channel}' (mean squared residual {excess[channel]:.2f} noise units^2); "
+               + summarize_features(features)
+               + f"; residual {'is' if white['white'] else 'is not'} white (lag-1 autocorrelation "
+               f"{white['lag1_autocorrelation']:.2f}); most excess power in {worst_band['band_hz'][0]:.3g}-"
+               f"{worst_band['band_hz'][1]:.3g} Hz (x{worst_band['relative_density']:.1f} the median band)")
+    if drift.get("significant"):
+        summary += f"; a drifts across time windows ({drift['a_change_percent']:+.1f} % first to last window)"
+    return {"summary": summary, "channel": channel, "mean_square_by_channel": excess, "whiteness": white,
+            "input_cross_correlation": xcorr, "features": features, "frequency_bands": bands,
+            "window_refits": drift}
+
+
+def window_refits(base: FitResult, noise, windows: int = 4) -> dict:
+    """Refit ``a`` alone on consecutive time windows (others held at the base fit): a drifting
+    parameter shows as a trend; significance from the windows' 1-sigma errors."""
+    model = base.model
+    n = model.recording.size
+    fixed = {name: (p if name == "a" else replace(p, free=False)) for name, p in model.parameters.items()}
+    window_model = Model(model.recording, model.structure, fixed, model.max_field_step).with_values(base.values)
+    values, sigmas, centers = [], [], []
+    edges = np.linspace(0, n, windows + 1).astype(int)
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        mask = np.zeros(n, dtype=bool)
+        mask[lo:hi] = True
+        result = local_fit(window_model, noise, mask, base.values, max_nfev=8)
+        values.append(result.values["a"])
+        sigmas.append(result.uncertainties.get("a", np.nan))
+        centers.append(float(model.recording.time[(lo + hi - 1) // 2]))
+    values, sigmas = np.array(values), np.array(sigmas)
+    change = values[-1] - values[0]
+    combined = float(np.hypot(sigmas[-1], sigmas[0]))
+    return {"parameter": "a", "window_centers_s": centers, "values": values.tolist(), "sigmas": sigmas.tolist(),
+            "a_change_percent": float(100 * change / values[0]),
+            "significant": bool(np.isfinite(combined) and abs(change) > 5 * combined
+                                and abs(change) > 0.005 * values[0])}

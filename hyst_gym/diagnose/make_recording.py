@@ -10,7 +10,8 @@ temperature column).
 Realism versus independence from the fitter: the generator integrates on a time grid 4x
 finer than the recording, with a 4x finer field substep, and decimates, so the fitted model
 never reproduces the generator's numbers exactly. The recording lasts a fraction of a
-second (40-60 kHz sampling, so that the transducer's kHz dynamics are resolved); the
+second (40-60 kHz sampling, so that the transducer's kHz dynamics are resolved)
+the
 thermal time constant is compressed to the record length (a tens-of-ms heating time is
 not realistic for a Terfenol-D rod -- it stands for minutes-long records of a real coil).
 
@@ -25,14 +26,27 @@ Effects at ``strength = 1`` (the default; strength scales the effect's size):
   default 3e6 Pa s of RodParams, which makes every mode above the first overdamped), so that the second
   longitudinal mode (9.5-11 kHz, below the 20-30 kHz Nyquist frequency) responds to the
   broadband drive these recordings use (a repeated 3-12 kHz chirp on top of the usual
-  excitation, as a rig that characterizes rod modes would apply; ``broadband=True`` gives
+  excitation, as a rig that characterizes rod modes would apply
+  ``broadband=True`` gives
   any effect, ``none`` included, the same drive). The lumped model with any chat/khat
   cannot reproduce the second resonance.
 * ``sensor_lag``: a first-order lag of 2-4 samples on every output sensor;
 * ``field_bias``: an unrecorded DC field of 10-20 % of the drive amplitude (a permanent magnet);
 * ``anhysteretic_shape``: Langevin (3) instead of Ising (2) (strength does not apply);
 * ``delta_e``: the stiffness follows the magnetization, ``khat*(1 + delta_e*((M/Ms)^2 - (M0/Ms)^2))``
-  with delta_e 0.3-0.8.
+  with delta_e 0.3-0.8;
+* ``input_map``: a saturating amplifier, the field in the rod ``h_s*tanh(H/h_s)`` of the recorded one
+  (h_s 0.4-0.8 times the peak field; strength blends it with the identity);
+* ``sensor_map``: each output sensor reads ``y + s*(q2*v^2 + q3*v^3)`` (v: the output over its range, s
+  its half-span) with a compressive q3 of -0.05 to -0.15 and q2 within +-0.08;
+* ``sensor_drift``: each sensor's offset settles exponentially by 3-8 % of its span (time constant
+  0.3-1 record lengths) from zero at the start;
+* ``mains_pickup``: 50 or 60 Hz pickup of 1-3 % of each channel's span, with a third harmonic of
+  20-40 % of that, at random phases.
+
+The flexible families (the last four) hold these laws, so the concealed study draws only the
+textbook ones (:data:`GENERATOR_EFFECTS`); every effect the tool names can be written
+(:data:`WRITABLE_EFFECTS`).
 """
 
 from __future__ import annotations
@@ -47,14 +61,18 @@ from ..physics.transducers import RodParams
 from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, lti_response, second_order_system, simulate_members,
                       varying_stiffness_response)
 from ..physics.constants import PAPER_COUPLING
-from .model import EFFECTS, PAPER_CHAT, PAPER_KHAT
+from .effects import EFFECTS, MECHANICAL_EFFECTS
+from .model import PAPER_CHAT, PAPER_KHAT
 from .recording import Recording, write_recording
 
-#: The effects this generator conceals: the vocabulary's textbook laws. The flexible families added for
-#: other forms (``input_map``, ``sensor_map``) are judged on recordings from independent generators
-#: (``experiments/independent_recordings.py``, ``experiments/other_forms.py``), not drawn here.
-GENERATOR_EFFECTS = tuple(e for e in EFFECTS if e not in ("input_map", "sensor_map", "sensor_drift", "mains_pickup")
-                          ) + ("none",)
+#: Effects whose laws are flexible families of the tool (their generators above draw one member each).
+FAMILY_GENERATED = ("input_map", "sensor_map", "sensor_drift", "mains_pickup")
+#: The effects the concealed study draws here: the vocabulary's textbook laws. The flexible families are
+#: judged on recordings from independent generators (``experiments/independent_recordings.py``,
+#: ``experiments/other_forms.py``), whose forms the tool's families do not hold exactly.
+GENERATOR_EFFECTS = tuple(e for e in EFFECTS if e not in FAMILY_GENERATED) + ("none",)
+#: Every effect this generator can write (``--effect``): the whole vocabulary and ``none``.
+WRITABLE_EFFECTS = EFFECTS + ("none",)
 OVERSAMPLE = 4
 PAPER_ZETAHAT = PAPER_COUPLING  # m/s^2 per A/m, eq. (13)
 
@@ -104,7 +122,8 @@ def _broadband_drive(rng, time, amplitude):
 
 def _rod_state_space(rng, n_elements=12, strength=1.0):
     """FEM rod (10) from :mod:`hyst_gym.physics.fem` with rod data drawn within +-5 % of the
-    defaults, a light tip mass and a low Kelvin-Voigt damping drawn from ``rng``; returns
+    defaults, a light tip mass and a low Kelvin-Voigt damping drawn from ``rng``
+    returns
     (A, B, C, static tip compliance in m/N)."""
     tip_mass = rng.uniform(*ROD_TIP_MASS) / max(strength, 1e-3)
     kelvin_voigt = float(np.exp(rng.uniform(*np.log(ROD_KELVIN_VOIGT))))
@@ -129,19 +148,21 @@ def make_recording(effect: str = "none", seed: int = 0, strength: float = 1.0, o
 
 
 def _check_arguments(effect, seed, strength, output, n_samples):
-    """One-line errors naming the CLI flag of a bad argument."""
-    if effect not in GENERATOR_EFFECTS:
-        raise ValueError(f"--effect must be one of {', '.join(GENERATOR_EFFECTS)}, got {effect!r}")
+    """One-line errors naming the argument (the Python name; :func:`main` words them as CLI flags)."""
+    if effect not in WRITABLE_EFFECTS:
+        raise ValueError(f"effect must be one of {', '.join(WRITABLE_EFFECTS)}, got {effect!r}")
     if output not in ("magnetization", "displacement", "both"):
-        raise ValueError(f"--output must be magnetization, displacement or both, got {output!r}")
-    if not (np.isfinite(strength) and strength >= 0):
-        raise ValueError(f"--strength must be a finite number >= 0, got {strength!r}")
-    if output == "magnetization" and effect in ("quadratic_magnetostriction", "rod_dynamics", "delta_e"):
-        raise ValueError(f"--effect {effect} acts on the displacement only; use --output displacement or both")
-    if int(seed) < 0:
-        raise ValueError(f"--seed must be >= 0, got {seed!r}")
-    if int(n_samples) < 400:
-        raise ValueError(f"--samples must be >= 400, got {n_samples!r}")
+        raise ValueError(f"output must be magnetization, displacement or both, got {output!r}")
+    if isinstance(strength, bool) or not isinstance(strength, (int, float)) or not (np.isfinite(strength)
+                                                                                    and strength >= 0):
+        raise ValueError(f"strength must be a finite number >= 0, got {strength!r}")
+    if output == "magnetization" and effect in MECHANICAL_EFFECTS:
+        raise ValueError(f"effect {effect} acts on the displacement only; record the displacement too "
+                         "(output displacement or both)")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 400:
+        raise ValueError(f"n_samples must be an integer >= 400, got {n_samples!r}")
 
 
 def _magnetic_row(effect, strength, effect_rng, material, field, fine_time, amplitude):
@@ -194,12 +215,15 @@ def _displacement(effect, strength, effect_rng, fine_time, magnetization, M0, Ms
 
 
 def _sensed(effect, strength, effect_rng, noise_rng, fine_time, fs, outputs, output, noise_rel):
-    """The recorded channels: sensor lag (if concealed), decimation to the sample rate, noise."""
+    """The recorded channels: the sensor's effect (if concealed), decimation to the sample rate, noise."""
     if effect == "sensor_lag":
         tau = strength * effect_rng.uniform(2.0, 4.0) / fs
         if tau > 0:
             outputs = {ch: lti_response(fine_time, sig, [[-1 / tau]], [1 / tau], [1.0], start="steady")
                        for ch, sig in outputs.items()}
+    if effect in SENSOR_GENERATORS:
+        outputs = {ch: SENSOR_GENERATORS[effect](sig, strength, effect_rng, fine_time)
+                   for ch, sig in sorted(outputs.items())}
     keep = slice(None, None, OVERSAMPLE)
     channels = ("magnetization", "displacement") if output == "both" else (output,)
     recorded = {}
@@ -207,6 +231,44 @@ def _sensed(effect, strength, effect_rng, noise_rng, fine_time, fs, outputs, out
         clean = outputs[ch][keep]
         recorded[ch] = clean + noise_rel * float(np.ptp(clean)) * noise_rng.standard_normal(clean.size)
     return recorded
+
+
+def _sensor_map(signal, strength, effect_rng, fine_time):
+    """A static sensor nonlinearity ``y + s*(q2*v^2 + q3*v^3)`` over the output's range (compressive q3)."""
+    lo, hi = float(np.min(signal)), float(np.max(signal))
+    centre, half = 0.5 * (lo + hi), (0.5 * (hi - lo) or 1.0)
+    q2 = strength * effect_rng.uniform(-0.08, 0.08)
+    q3 = -strength * effect_rng.uniform(0.05, 0.15)
+    v = (signal - centre) / half
+    return signal + half * (q2 * v ** 2 + q3 * v ** 3)
+
+
+def _sensor_drift(signal, strength, effect_rng, fine_time):
+    """An offset that settles exponentially from zero at the start, by 3-8 % of the output's span."""
+    size = strength * effect_rng.uniform(0.03, 0.08) * effect_rng.choice([-1.0, 1.0]) * float(np.ptp(signal))
+    tau = effect_rng.uniform(0.3, 1.0) * float(fine_time[-1] - fine_time[0])
+    return signal + size * (1.0 - np.exp(-(fine_time - fine_time[0]) / tau))
+
+
+def _mains_pickup(signal, strength, effect_rng, fine_time):
+    """Mains pickup at 50 or 60 Hz, 1-3 % of the output's span, with a third harmonic of 20-40 % of it."""
+    hz = float(effect_rng.choice([50.0, 60.0]))
+    size = strength * effect_rng.uniform(0.01, 0.03) * float(np.ptp(signal))
+    third = effect_rng.uniform(0.2, 0.4)
+    phases = effect_rng.uniform(0.0, 2 * np.pi, 2)
+    phase = 2 * np.pi * hz * fine_time
+    return signal + size * (np.sin(phase + phases[0]) + third * np.sin(3 * phase + phases[1]))
+
+
+#: Generators of the sensor's effects that act on each recorded output alone.
+SENSOR_GENERATORS = {"sensor_map": _sensor_map, "sensor_drift": _sensor_drift, "mains_pickup": _mains_pickup}
+
+
+def _input_mapped(field, strength, effect_rng):
+    """The field (A/m) a saturating amplifier delivers for the recorded (commanded) ``field``:
+    ``h_s*tanh(H/h_s)``, blended with the identity by ``strength`` (0: none)."""
+    h_s = effect_rng.uniform(0.4, 0.8) * float(np.max(np.abs(field)))
+    return np.ascontiguousarray(field + strength * (h_s * np.tanh(field / h_s) - field))
 
 
 def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: float = 1.0, output: str = "both",
@@ -228,19 +290,25 @@ def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: flo
         # a separate stream, so the rest of the recording is the same with or without the chirp
         field = field + _broadband_drive(np.random.default_rng(np.random.SeedSequence([int(seed), 6, 3])),
                                          fine_time, amplitude)
-    a = rng.uniform(4000, 9000); k = rng.uniform(800, 3000); rho = rng.uniform(-0.6, 0.4)
-    Ms = rng.uniform(6e5, 9e5); c = rng.uniform(0.1, 0.4)
+    a = rng.uniform(4000, 9000)
+    k = rng.uniform(800, 3000)
+    rho = rng.uniform(-0.6, 0.4)
+    Ms = rng.uniform(6e5, 9e5)
+    c = rng.uniform(0.1, 0.4)
     curve = "langevin" if effect == "anhysteretic_shape" else "ising"
     if curve == "langevin":
         a = a / 3.0  # same initial anhysteretic slope Ms/(3a) as the Ising curve it replaces
     alpha = rho * a / Ms * (3.0 if curve == "langevin" else 1.0)
-    chat = PAPER_CHAT * rng.uniform(0.8, 1.25); khat = PAPER_KHAT * rng.uniform(0.8, 1.25)
+    chat = PAPER_CHAT * rng.uniform(0.8, 1.25)
+    khat = PAPER_KHAT * rng.uniform(0.8, 1.25)
     zetahat = PAPER_ZETAHAT * rng.uniform(0.8, 1.25)
     noise_rel = rng.uniform(0.5e-3, 1.5e-3)
     effect_rng = np.random.default_rng(np.random.SeedSequence([int(seed), 6, 1]))
     material = dict(a=a, k=k, alpha=alpha, Ms=Ms, c=c, curve=curve)
     row, kind = _magnetic_row(effect, strength, effect_rng, material, field, fine_time, amplitude)
-    magnetization = simulate_members(fine_time, field, np.array([[row[c_] for c_ in MAGNETIC_COLUMNS]]), kind,
+    # the field in the rod: the recorded one, or what a saturating amplifier makes of it (input_map)
+    applied = _input_mapped(field, strength, effect_rng) if effect == "input_map" else field
+    magnetization = simulate_members(fine_time, applied, np.array([[row[c_] for c_ in MAGNETIC_COLUMNS]]), kind,
                                      25.0, AMBIENT_TEMPERATURE)[:, 0]
     M0 = float(np.median(magnetization))
     displacement = _displacement(effect, strength, effect_rng, fine_time, magnetization, M0, Ms,
@@ -256,7 +324,7 @@ def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: flo
 
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--effect", required=True, choices=GENERATOR_EFFECTS, help="concealed effect")
+    parser.add_argument("--effect", required=True, choices=WRITABLE_EFFECTS, help="concealed effect")
     parser.add_argument("--seed", type=int, required=True, help="seed for parameters, excitation and noise")
     parser.add_argument("--strength", type=float, default=1.0, help="size of the effect (default 1)")
     parser.add_argument("--output", default="both", choices=("magnetization", "displacement", "both"),
@@ -265,8 +333,18 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, type=Path, help="CSV file to write (sidecar .json beside it)")
 
 
+#: The CLI flag of each argument of :func:`make_recording`, for its one-line errors.
+FLAGS = {"effect": "--effect", "seed": "--seed", "strength": "--strength", "output": "--output",
+         "n_samples": "--samples"}
+
+
 def main(args) -> int:
-    recording, sidecar = make_recording(args.effect, args.seed, args.strength, args.output, args.samples)
+    try:
+        recording, sidecar = make_recording(args.effect, args.seed, args.strength, args.output, args.samples)
+    except ValueError as error:
+        message = str(error)
+        first = message.split(" ", 1)[0]
+        raise ValueError(FLAGS[first] + message[len(first):] if first in FLAGS else message) from None
     write_recording(args.out, recording, sidecar)
     print(f"wrote {args.out} ({recording.size} samples, columns: time, field, {', '.join(recording.channels)})")
     return 0

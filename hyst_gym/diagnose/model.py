@@ -57,7 +57,7 @@ the base model when those parameters vanish:
                                 harmonic, in units of the channel's half-span
 ==============================  ============================================================
 
-Each extension fills one *slot* of the model chain (:data:`EFFECT_SLOTS`): the input map, the
+Each extension fills one *slot* of the model chain (its ``slot`` in the registry, :mod:`.effects`): the input map, the
 anhysteretic curve, the time variation of the material, the rate dependence, the
 magnetostriction law, the stiffness, the mechanical modes, the sensor's dynamics or the sensor's
 static map, the sensor's offset and pickup. The flexible families (``delta_e``, the heating law of
@@ -78,63 +78,23 @@ import numpy as np
 from ..physics.fem import FEMRod
 from ..physics.constants import PAPER_DAMPING, PAPER_STIFFNESS
 from ..physics.transducers import RodParams
+from .effects import (DRIFT_NAMES, EFFECTS, INPUT_MAP_NAMES, MAINS_MIN_CYCLES, MAINS_NAMES, PAPER_MS,
+                      SENSOR_MAP_NAMES, applicable_effects, effect, extension_parameters, mapped_field)
 from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, first_order_system, lti_response,
                       second_order_system, simulate_members, step_classes, step_lti,
                       varying_stiffness_response)
+from .parameter import Parameter, slope_factor
 from .recording import Recording
 
 TRANSDUCERS = ("none", "first_order", "lumped", "lumped_nonlinear", "fem")
-EFFECTS = ("thermal_drift", "eddy_current", "quadratic_magnetostriction", "rod_dynamics",
-           "sensor_lag", "field_bias", "anhysteretic_shape", "delta_e", "small_loop", "input_map", "sensor_map",
-           "sensor_drift", "mains_pickup")
-#: The slot of the model chain each extension fills, in an engineer's words (issue 22).
-EFFECT_SLOTS = {
-    "field_bias": "input map (recorded to true field): an offset",
-    "input_map": "input map (recorded to true field): a static nonlinearity, e.g. a saturating amplifier",
-    "anhysteretic_shape": "anhysteretic curve",
-    "small_loop": "anhysteretic curve at low field (reversible susceptibility)",
-    "thermal_drift": "time variation of the material parameters (a(t), Ms(t))",
-    "eddy_current": "rate dependence",
-    "quadratic_magnetostriction": "magnetostriction law",
-    "delta_e": "stiffness (it follows the magnetization)",
-    "rod_dynamics": "mechanical dynamics (a second mode)",
-    "sensor_lag": "sensor dynamics (a lag)",
-    "sensor_map": "sensor static map (a nonlinearity)",
-    "sensor_drift": "sensor offset (a slow drift)",
-    "mains_pickup": "sensor pickup (mains interference at 50/60 Hz)",
-}
-#: Additive sensor terms per output channel: slow offset drift and mains pickup.
-DRIFT_NAMES = {"magnetization": ("drift_linear_m", "drift_quadratic_m"),
-               "displacement": ("drift_linear_x", "drift_quadratic_x")}
-MAINS_NAMES = {ch: tuple(f"{term}_{ch[0]}" for term in ("mains_cos", "mains_sin", "mains3_cos", "mains3_sin"))
-               for ch in ("magnetization", "displacement")}
-#: Mains pickup needs this many cycles in the record (a sinusoid of known frequency is fixed by a few)
-#: and its third harmonic below the Nyquist frequency.
-MAINS_MIN_CYCLES = 3
-#: Sensor-map parameters per output channel.
-SENSOR_MAP_NAMES = {"magnetization": ("sensor_quadratic_m", "sensor_cubic_m"),
-                    "displacement": ("sensor_quadratic_x", "sensor_cubic_x")}
-#: Parameters each extension adds (anhysteretic_shape adds none: it swaps the curve).
-EFFECT_PARAMETERS = {
-    "field_bias": ("H0",),
-    "eddy_current": ("k_e",),
-    "thermal_drift": ("heating", "tau_th", "beta_Ms", "heating_exponent"),
-    "sensor_lag": ("tau_m", "tau_x"),
-    "quadratic_magnetostriction": ("zeta_q",),
-    # damping2, not zeta2: zeta2 is the M^2 gain of lumped_nonlinear (12)
-    "rod_dynamics": ("f2", "damping2", "g2"),
-    "anhysteretic_shape": (),
-    "delta_e": ("delta_e", "delta_e_linear"),
-    "small_loop": ("chi_r",),
-    "input_map": ("input_quadratic", "input_cubic", "input_saturation", "input_saturation_negative"),
-    "sensor_map": SENSOR_MAP_NAMES["magnetization"] + SENSOR_MAP_NAMES["displacement"],
-    "sensor_drift": DRIFT_NAMES["magnetization"] + DRIFT_NAMES["displacement"],
-    "mains_pickup": ("mains_hz",) + MAINS_NAMES["magnetization"] + MAINS_NAMES["displacement"],
-}
+# The vocabulary and each effect's parameters live in the registry (.effects); these names stay importable here.
+__all__ = ["DRIFT_NAMES", "EFFECTS", "FEM_ELEMENTS", "FEM_ROD_NAMES", "GAIN_NAMES", "MAINS_MIN_CYCLES", "MAINS_NAMES",
+           "MECHANICS_TOLERANCE", "Model", "PAPER_CHAT", "PAPER_KHAT", "PAPER_MS", "Parameter", "SENSOR_MAP_NAMES",
+           "Structure", "TRANSDUCERS", "applicable_effects", "base_parameters", "channel_range", "extension_parameters",
+           "fem_rod", "mapped_field", "noise_level", "relative_stiffness_change", "slope_factor"]
 #: Paper values of the lumped coefficients (13).
 PAPER_CHAT = PAPER_DAMPING     # 1/s
 PAPER_KHAT = PAPER_STIFFNESS   # 1/s^2
-PAPER_MS = 7.65e5       # A/m
 #: Default tolerance on the lumped mechanics (khat, chat): the fit keeps each within a factor
 #: of this of its nominal value (the paper's (13), or ``khat``/``chat`` in the recording's
 #: sidecar). A rod's data sheet pins its resonance far better than 1.5x; a looser prior lets
@@ -144,30 +104,6 @@ MECHANICS_TOLERANCE = 1.5
 FEM_ELEMENTS = 8
 #: Rod data the ``fem`` base model fits (the others stay at RodParams()).
 FEM_ROD_NAMES = ("Y", "ML", "cD", "cL")
-
-
-@dataclass(frozen=True)
-class Parameter:
-    """One model parameter: physical value, bounds, unit, whether it is fitted."""
-
-    name: str
-    value: float
-    lower: float
-    upper: float
-    unit: str
-    log: bool = False
-    free: bool = True
-    scale: float = 1.0  # fitted coordinate is value/scale for linear parameters
-
-    def to_x(self, value):
-        return np.log(value) if self.log else value / self.scale
-
-    def from_x(self, x):
-        return float(np.exp(x)) if self.log else float(x * self.scale)
-
-    @property
-    def x_bounds(self):
-        return self.to_x(self.lower), self.to_x(self.upper)
 
 
 @dataclass(frozen=True)
@@ -185,21 +121,16 @@ class Structure:
             raise ValueError(f"model must be one of {', '.join(TRANSDUCERS)}, got {self.transducer!r}")
         if self.anhysteretic not in ("ising", "langevin"):
             raise ValueError(f"anhysteretic must be 'ising' or 'langevin', got {self.anhysteretic!r}")
-        if self.extension is not None and self.extension not in EFFECTS:
-            raise ValueError(f"unknown effect {self.extension!r}; expected one of {', '.join(EFFECTS)}")
+        if self.extension is not None:
+            effect(self.extension)  # a one-line error naming the vocabulary if it is not registered
         if not (self.mechanics_tolerance >= 1.0):
             raise ValueError(f"mechanics_tolerance must be a factor >= 1, got {self.mechanics_tolerance!r}")
 
     @property
     def curve(self) -> str:
-        if self.extension == "anhysteretic_shape":
+        if self.extension is not None and effect(self.extension).swaps_curve:
             return "langevin" if self.anhysteretic == "ising" else "ising"
         return self.anhysteretic
-
-
-def slope_factor(curve: str) -> float:
-    """Man'(0)*a/Ms: 1 for Ising, 1/3 for Langevin."""
-    return 1.0 if curve == "ising" else 1.0 / 3.0
 
 
 class Model:
@@ -257,7 +188,7 @@ class Model:
         """Simulated M (A/m) for each values dict: shape (T, len(values_list))."""
         rows = np.array([self.magnetic_row(v) for v in values_list])
         kind = 0 if self.structure.curve == "ising" else 1
-        maps = np.array([[v.get(n, 0.0) for n in EFFECT_PARAMETERS["input_map"]] for v in values_list])
+        maps = np.array([[v.get(n, 0.0) for n in INPUT_MAP_NAMES] for v in values_list])
         out = np.empty((self.recording.size, len(values_list)))
         # members that share an input map share one field (one bank call per distinct map)
         for shape in np.unique(maps, axis=0):
@@ -348,23 +279,6 @@ def relative_stiffness_change(magnetization, values):
     ``delta_e*(m^2 - m0^2) + delta_e_linear*(m - m0)``, m = M/Ms, zero at the bias M0."""
     m, m0 = magnetization / values["Ms"], values["M0"] / values["Ms"]
     return values.get("delta_e", 0.0) * (m ** 2 - m0 ** 2) + values.get("delta_e_linear", 0.0) * (m - m0)
-
-
-def mapped_field(field, quadratic, cubic, saturation, saturation_negative):
-    """The ``input_map`` family: the true field (A/m) for the recorded ``field`` (A/m),
-    ``H*(1 + quadratic*u + cubic*u^2)/sqrt(1 + s*u^2)`` with u = H/max|H| and s = ``saturation``
-    where u >= 0, ``saturation_negative`` where u < 0: a polynomial and an algebraic sigmoid (close to
-    tanh) in one family, the identity when all four vanish.
-
-    Why two saturations: an amplifier's rails are often unequal, so it saturates at another field on
-    each side; the two sides join with equal value and slope at u = 0 (s*u^2 has zero slope there),
-    and each side is monotone for any s >= 0 (slope (1 + s*u^2)**-1.5 at q = c = 0), where a
-    polynomial asymmetry (q) large enough to mimic unequal rails would fold back."""
-    if quadratic == 0.0 and cubic == 0.0 and saturation == 0.0 and saturation_negative == 0.0:
-        return field
-    u = field / (float(np.max(np.abs(field))) or 1.0)
-    s = np.where(u >= 0.0, saturation, saturation_negative)
-    return np.ascontiguousarray(field * (1.0 + quadratic * u + cubic * u ** 2) / np.sqrt(1.0 + s * u ** 2))
 
 
 def channel_range(signal):
@@ -476,101 +390,3 @@ def base_parameters(recording: Recording, structure: Structure) -> dict:
                 params["zetahat"] = Parameter("zetahat", zeta, -1e4 * zeta, 1e4 * zeta, "m/s^2 per A/m",
                                               scale=zeta)
     return params
-
-
-def extension_parameters(recording: Recording, structure: Structure, base_values: dict) -> dict:
-    """Initial values and bounds of the parameters ``structure.extension`` adds."""
-    effect = structure.extension
-    field = recording.field
-    time = recording.time
-    h_max = float(np.max(np.abs(field))) or 1.0
-    duration = float(time[-1] - time[0])
-    dt = float(np.median(np.diff(time)))
-    rate = np.abs(np.diff(field)) / np.diff(time)
-    out = {}
-    if effect == "field_bias":
-        out["H0"] = Parameter("H0", 0.0, -h_max, h_max, "A/m", scale=0.01 * h_max)
-    elif effect == "eddy_current":
-        ms = base_values.get("Ms", PAPER_MS)
-        dm_dt = ms * float(np.percentile(rate, 95)) / h_max + 1e-30
-        upper = 2.0 * h_max / dm_dt
-        out["k_e"] = Parameter("k_e", 1e-3 * upper, 0.0, upper, "s", scale=1e-2 * upper)
-    elif effect == "thermal_drift":
-        mean_sq = float(np.mean(field ** 2)) or 1.0
-        upper = 300.0 / (mean_sq * duration)  # at most ~300 K of heating over the record
-        out["heating"] = Parameter("heating", 0.01 * upper, 0.0, upper, "K/s per (A/m)^2", scale=0.01 * upper)
-        out["tau_th"] = Parameter("tau_th", duration, 5 * dt, 1e3 * duration, "s", log=True)
-        out["beta_Ms"] = Parameter("beta_Ms", 0.0, -0.01, 0.01, "1/K", scale=1e-3)
-        # the family's heating law: drive ~ |H|^p (Joule heating of a current-driven coil: p = 2;
-        # core or hysteresis loss: p between 1 and 3)
-        out["heating_exponent"] = Parameter("heating_exponent", 2.0, 0.5, 4.0, "1", scale=0.5)
-    elif effect == "sensor_lag":
-        for name, channel in (("tau_m", "magnetization"), ("tau_x", "displacement")):
-            free = channel in recording.channels and (channel == "magnetization" or structure.transducer != "none")
-            out[name] = Parameter(name, dt if free else 0.0, 0.0, 0.05 * duration, "s", scale=dt, free=free)
-    elif effect == "quadratic_magnetostriction":
-        m_span = base_values.get("Ms", PAPER_MS)
-        gain = abs(next((base_values[g] for g in ("zetahat", "nu", "zeta_fem") if g in base_values), 1.0)) or 1.0
-        out["zeta_q"] = Parameter("zeta_q", 0.0, -1e3 * gain / m_span, 1e3 * gain / m_span,
-                                  "gain units per A/m", scale=0.1 * gain / m_span)
-    elif effect == "delta_e":
-        out["delta_e"] = Parameter("delta_e", 0.0, -0.5, 3.0, "1 (relative stiffness change, M = 0 to Ms)",
-                                   scale=0.1)
-        out["delta_e_linear"] = Parameter("delta_e_linear", 0.0, -3.0, 3.0,
-                                          "1 (relative stiffness change per unit M/Ms)", scale=0.1)
-    elif effect == "input_map":
-        # monotone on |u| <= 1 needs 1 + 2*q*u + 3*c*u^2 > 0: c >= -1/3 at q = 0 (a tanh's cubic term)
-        out["input_quadratic"] = Parameter("input_quadratic", 0.0, -0.5, 0.5, "1 (per unit H/max|H|)", scale=0.05)
-        out["input_cubic"] = Parameter("input_cubic", 0.0, -0.33, 1.0, "1 (per unit (H/max|H|)^2)", scale=0.05)
-        # gain at the peak field down to 1/sqrt(1 + 30) = 0.18 of the small-signal gain
-        out["input_saturation_negative"] = Parameter("input_saturation_negative", 0.0, 0.0, 30.0,
-                                                     "1 (per unit (H/max|H|)^2, where H < 0)", scale=0.5)
-        out["input_saturation"] = Parameter("input_saturation", 0.0, 0.0, 30.0,
-                                            "1 (per unit (H/max|H|)^2, where H >= 0)",
-                                            scale=0.5)
-    elif effect in ("sensor_drift", "mains_pickup"):
-        if effect == "mains_pickup":
-            out["mains_hz"] = Parameter("mains_hz", 50.0, 45.0, 65.0, "Hz", free=False)
-        for channel, names in (DRIFT_NAMES if effect == "sensor_drift" else MAINS_NAMES).items():
-            free = channel in recording.channels and (channel == "magnetization" or structure.transducer != "none")
-            for name in names:
-                out[name] = Parameter(name, 0.0, -1.0, 1.0, "1 (of the channel's half-span)", scale=0.01,
-                                      free=free)
-    elif effect == "sensor_map":
-        for channel, names in SENSOR_MAP_NAMES.items():
-            free = channel in recording.channels and (channel == "magnetization" or structure.transducer != "none")
-            for name in names:
-                out[name] = Parameter(name, 0.0, -0.5, 0.5, "1 (of the channel's half-span)", scale=0.05,
-                                      free=free)
-    elif effect == "small_loop":
-        # a reversible susceptibility up to three times the anhysteretic's initial slope
-        # Ms*slope_factor/a (fits to measured ferrite loops give 0.4-0.8 times it)
-        initial_slope = (base_values.get("Ms", PAPER_MS) * slope_factor(structure.curve)
-                         / base_values.get("a", h_max / 5))
-        out["chi_r"] = Parameter("chi_r", 0.0, 0.0, 3.0 * initial_slope, "1 (reversible low-field susceptibility)",
-                                 scale=0.1 * initial_slope)
-    elif effect == "rod_dynamics":
-        f1 = np.sqrt(base_values.get("khat", PAPER_KHAT)) / (2 * np.pi)
-        nyquist = 0.5 / dt
-        out["f2"] = Parameter("f2", min(5 * f1, 0.6 * nyquist), 1.2 * f1, 0.98 * nyquist, "Hz", log=True)
-        out["damping2"] = Parameter("damping2", 0.05, 1e-3, 2.0, "1", log=True)
-        out["g2"] = Parameter("g2", 0.0, -1.0, 1.0, "1 (static gain relative to mode 1)", scale=0.01)
-    return out
-
-
-def applicable_effects(recording: Recording, structure: Structure) -> list[str]:
-    """Vocabulary effects that can show in this recording under this base structure."""
-    has_x = "displacement" in recording.channels and structure.transducer not in ("none",)
-    effects = ["thermal_drift", "eddy_current", "sensor_lag", "field_bias", "anhysteretic_shape", "small_loop",
-               "input_map", "sensor_map", "sensor_drift"]
-    duration = float(recording.time[-1] - recording.time[0])
-    nyquist = 0.5 / float(np.median(np.diff(recording.time)))
-    rated = recording.metadata.get("time_axis") != "synthetic"
-    if duration * 50.0 >= MAINS_MIN_CYCLES and nyquist > 3 * 60.0 and rated:
-        effects.append("mains_pickup")
-    if has_x and structure.transducer != "lumped_nonlinear":
-        effects.insert(2, "quadratic_magnetostriction")
-    if has_x and structure.transducer in ("lumped", "lumped_nonlinear"):
-        effects.insert(3, "rod_dynamics")
-        effects.append("delta_e")
-    return effects

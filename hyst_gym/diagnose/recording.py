@@ -21,6 +21,7 @@ column, and the problem; nothing is guessed silently.
 
 from __future__ import annotations
 
+import codecs
 import csv
 import json
 import math
@@ -123,32 +124,77 @@ def sidecar_path(path) -> Path:
     return path.with_suffix(".json")
 
 
+#: Delimiters a recording's CSV may use, tried in this order on the header row: the comma of the format,
+#: and the semicolon and tab that spreadsheets in many locales write.
+DELIMITERS = (",", ";", "\t")
+#: Bytes read first to recognize a binary file (NUL bytes) before reading the whole of it.
+SNIFF_BYTES = 65536
+
+
 def read_recording(path) -> Recording:
     """Read a recording CSV (and its sidecar JSON, if present). See the module docstring.
 
-    Raises ``ValueError`` (one line: file, row/column, problem) for any malformed input and
-    ``OSError`` if the file cannot be opened.
+    A UTF-8 byte-order mark is skipped and a ``;`` or tab delimiter is accepted (a spreadsheet's
+    export), each said so in the recording's ``metadata["read_notes"]``. Raises ``ValueError`` (one
+    line: file, row/column, problem) for any malformed input and ``OSError`` if the file cannot be opened.
     """
     path = Path(path)
     where = str(path)
     if path.is_dir():
         raise ValueError(f"{where}: is a directory, not a recording CSV")
     metadata = _read_sidecar(path)
+    text, notes = _read_text(path, where)
+    lines = text.splitlines()
+    if not lines or not any(line.strip() for line in lines):
+        raise ValueError(f"{where}: empty file (expected a header row and samples)")
+    delimiter = _delimiter(lines[0])
+    if delimiter != ",":
+        notes.append(f"columns separated by {'a tab' if delimiter == chr(9) else repr(delimiter)}, not a comma")
     try:
-        with open(path, newline="", encoding="utf-8") as handle:
-            text = handle.read()
+        rows = list(csv.reader(lines, delimiter=delimiter))
+    except csv.Error as error:
+        raise ValueError(f"{where}: not a readable CSV file ({error})") from None
+    header = _checked_header(rows[0], where)
+    data = _columns(rows, header, where, delimiter)
+    if notes:
+        metadata = {**metadata, "read_notes": notes}
+    return _recording(data, metadata, path, where)
+
+
+def _read_text(path: Path, where: str) -> tuple[str, list]:
+    """The file's text, and notes on what was accepted (a byte-order mark). A binary file is recognized
+    from its first ``SNIFF_BYTES`` bytes, without reading the rest."""
+    notes = []
+    with open(path, "rb") as handle:
+        head = handle.read(SNIFF_BYTES)
+        if b"\x00" in head and not head.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+            raise ValueError(f"{where}: contains NUL bytes; not a text CSV file")
+        raw = head + handle.read()
+    if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        raise ValueError(f"{where}: UTF-16 text (it starts with a UTF-16 byte-order mark); save it as UTF-8")
+    if raw.startswith(codecs.BOM_UTF8):
+        raw = raw[len(codecs.BOM_UTF8):]
+        notes.append("a UTF-8 byte-order mark at the start of the file was skipped")
+    try:
+        text = raw.decode("utf-8")
     except UnicodeDecodeError as error:
         raise ValueError(f"{where}: not a UTF-8 text file ({error.reason} at byte {error.start})") from None
     if "\x00" in text:
         raise ValueError(f"{where}: contains NUL bytes; not a text CSV file")
-    lines = text.splitlines()
-    if not lines or not any(line.strip() for line in lines):
-        raise ValueError(f"{where}: empty file (expected a header row and samples)")
-    try:
-        rows = list(csv.reader(lines))
-    except csv.Error as error:
-        raise ValueError(f"{where}: not a readable CSV file ({error})") from None
-    header = [cell.strip().lower() for cell in rows[0]]
+    return text, notes
+
+
+def _delimiter(header_line: str) -> str:
+    """The delimiter whose split of the header row names a ``time`` column (the comma if none does)."""
+    for delimiter in DELIMITERS:
+        if "time" in (cell.strip().lower() for cell in header_line.split(delimiter)):
+            return delimiter
+    return ","
+
+
+def _checked_header(first_row, where) -> list:
+    """The header row's column names (lower case), with the columns the format requires."""
+    header = [cell.strip().lower() for cell in first_row]
     if len(set(header)) != len(header):
         duplicate = next(h for h in header if header.count(h) > 1)
         raise ValueError(f"{where}: row 1: column '{duplicate}' appears twice in the header")
@@ -162,10 +208,14 @@ def read_recording(path) -> Recording:
                          "('flux_density' in T may stand for magnetization)")
     if "magnetization" in header and "flux_density" in header:
         raise ValueError(f"{where}: row 1: give 'magnetization' or 'flux_density', not both")
+    return header
+
+
+def _columns(rows, header, where, delimiter=",") -> dict:
+    """The known columns' values, row by row, each a finite number."""
     wanted = [name for name in KNOWN_COLUMNS if name in header]
     index = {name: header.index(name) for name in wanted}
     data = {name: [] for name in wanted}
-    row_number = 1
     for row_number, row in enumerate(rows[1:], start=2):
         if not row or all(not cell.strip() for cell in row):
             continue  # blank lines carry no sample
@@ -173,18 +223,27 @@ def read_recording(path) -> Recording:
             raise ValueError(f"{where}: row {row_number}: has {len(row)} cells but the header has "
                              f"{len(header)}")
         for name in wanted:
-            cell = row[index[name]].strip()
-            try:
-                value = float(cell)
-            except ValueError:
-                raise ValueError(f"{where}: row {row_number}, column '{name}': {cell[:40]!r} is not "
-                                 f"a number") from None
-            if not math.isfinite(value):
-                raise ValueError(f"{where}: row {row_number}, column '{name}': {cell[:40]!r} is not a "
-                                 f"finite number")
-            data[name].append(value)
+            data[name].append(_number(row[index[name]].strip(), where, row_number, name, delimiter))
     if not data["time"]:
         raise ValueError(f"{where}: no samples after the header row")
+    return data
+
+
+def _number(cell, where, row_number, name, delimiter) -> float:
+    try:
+        value = float(cell)
+    except ValueError:
+        hint = " (a decimal comma? write a decimal point)" if delimiter != "," and "," in cell else ""
+        raise ValueError(f"{where}: row {row_number}, column '{name}': {cell[:40]!r} is not "
+                         f"a number{hint}") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{where}: row {row_number}, column '{name}': {cell[:40]!r} is not a "
+                         f"finite number")
+    return value
+
+
+def _recording(data, metadata, path, where) -> Recording:
+    """The :class:`Recording` in SI units: the field from a current (H = n*I) and M from B where given."""
     if "field" in data:
         field = np.array(data["field"])
     else:

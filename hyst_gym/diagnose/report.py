@@ -8,31 +8,15 @@ from pathlib import Path
 import numpy as np
 
 from ..physics.constants import ROOM_TEMPERATURE
+from .effects import (EFFECT_PARAMETERS, EFFECT_WORDS, INPUT_MAP_NAMES, SENSOR_MAP_NAMES, effect as registered,
+                      record_temperature_rise, temperature_rise_trace, thermal_change_words)
 from .fit import FitResult
-from .model import (EFFECT_PARAMETERS, FEM_ROD_NAMES, SENSOR_MAP_NAMES, channel_range, mapped_field,
-                    relative_stiffness_change, slope_factor)
+from .model import FEM_ROD_NAMES, channel_range, mapped_field, relative_stiffness_change, slope_factor
 
-EFFECT_WORDS = {
-    "thermal_drift": "thermal drift: the material heats up during the record and its anhysteretic parameter a "
-                     "moves with temperature (a ~ T, eq. 4)",
-    "eddy_current": "eddy-current (rate-dependent) loss: the material sees H - k_e dM/dt",
-    "quadratic_magnetostriction": "quadratic magnetostriction: the displacement follows M^2 (12), not the "
-                                  "linearized M (13)",
-    "rod_dynamics": "rod dynamics: a second longitudinal rod mode (10) that the lumped model lacks",
-    "sensor_lag": "sensor lag: a first-order lag in the output sensor(s)",
-    "field_bias": "an unrecorded DC bias field H0 (e.g. a permanent magnet) added to H",
-    "anhysteretic_shape": "the other anhysteretic curve (Ising (2) <-> Langevin (3))",
-    "delta_e": "the Delta-E effect: the transducer's stiffness changes with its magnetization (a quadratic in "
-               "M/Ms, plotted in stiffness.png)",
-    "input_map": "an input map: the field in the material is a static nonlinear function of the recorded one "
-                 "(e.g. a saturating amplifier; plotted in input_map.png)",
-    "sensor_map": "a sensor nonlinearity: an output sensor reads a static nonlinear function of the true output "
-                  "(plotted in sensor_map.png)",
-    "sensor_drift": "a slow drift of a sensor's offset over the record (plotted in sensor_drift.png)",
-    "mains_pickup": "mains pickup: an output sensor picks up the 50/60 Hz mains and its third harmonic",
-    "small_loop": "small-loop (Rayleigh) behaviour: a reversible low-field susceptibility chi_r that (6) lacks, "
-                  "fading at saturation",
-}
+# EFFECT_WORDS (each effect's sentence) and the thermal words are the registry's (:mod:`.effects`);
+# they stay importable here.
+__all__ = ["EFFECT_WORDS", "UNITS", "explain", "physical_params", "record_temperature_rise", "slot_shapes",
+           "temperature_rise_trace", "thermal_change_words", "write_json", "write_plots"]
 UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "heating_exponent": "", "tau_th": "s", "beta_Ms": "1/K",
          "tau_m": "s", "tau_x": "s", "zeta_q": "m/s^2 per (A/m)^2", "f2": "Hz", "damping2": "", "g2": "",
          "delta_e": "", "delta_e_linear": "", "chi_r": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "", "alpha": "",
@@ -58,45 +42,10 @@ def _fmt(name, values, sigmas):
     return text + (f" {unit}" if unit else "")
 
 
-def temperature_rise_trace(recording, values) -> np.ndarray:
-    """K per sample: the fitted thermal model's temperature rise, dT/dt = heating*H^2 - T/tau_th
-    integrated exactly over each sample interval (H held), from 0 at the first sample."""
-    decay = np.exp(-np.diff(recording.time) / values["tau_th"])
-    exponent = values.get("heating_exponent", 2.0)
-    h_ref = float(np.sqrt(np.mean(recording.field ** 2))) or 1.0
-    drive = values["heating"] * values["tau_th"] * h_ref ** 2 * np.abs(recording.field[:-1] / h_ref) ** exponent
-    trace = np.zeros(len(recording.time))
-    for i, (factor, target) in enumerate(zip(decay, drive)):
-        trace[i + 1] = target + (trace[i] - target) * factor
-    return trace
-
-
-def record_temperature_rise(recording, values) -> float:
-    """K: the fitted thermal model's temperature rise from the first to the last sample. Unlike a
-    steady-state rise, it stays meaningful when tau_th is much longer than the record."""
-    return float(temperature_rise_trace(recording, values)[-1])
-
-
-def thermal_change_words(recording, values) -> str:
-    """What a thermal_drift fit determines, in words: the change of a and Ms over the record, and the
-    temperature rise that the laws a ~ T (4) and Ms*(1 - beta*theta) imply.
-
-    Why both: without a temperature channel the record determines how a and Ms changed, not the
-    temperature; the rise is read off through the a(T) law, so it is only as right as that law (near a
-    Curie point, say, a and Ms change far faster per kelvin than a ~ T and the implied rise is too
-    large). The report says so instead of stating the rise as a measurement."""
-    rise = record_temperature_rise(recording, values)
-    a_change = rise / ROOM_TEMPERATURE  # a ~ T: relative change of a = rise / T_amb
-    ms_change = -values.get("beta_Ms", 0.0) * rise
-    return (f"over the record a changes by {100 * a_change:+.3g} % and Ms by {100 * ms_change:+.3g} %; the "
-            f"temperature rise that the law a ~ T (4) implies is {rise:.3g} K, an inference through that law, "
-            f"not a measurement: the record determines the changes of a and Ms, and the rise is right only where "
-            f"a(T) is proportional to T (not near a Curie point); a temperature channel would measure it")
-
-
 def slot_shapes(fit) -> list:
     """The fitted shape of the slot an extension fills, as curves to plot (issue 22: "model it"):
-    ``(file stem, title, x label, y label, [(label, x, y), ...])`` per plot; empty for extensions
+    ``(file stem, title, x label, y label, [(label, x, y), ...])`` per plot
+    empty for extensions
     whose shape is a number (a lag, a bias)."""
     values, rec = fit.values, fit.model.recording
     effect = fit.model.structure.extension
@@ -109,7 +58,7 @@ def slot_shapes(fit) -> list:
         # the map's frame is max|H| of the record: evaluate it on a grid spanning exactly that range
         peak = float(np.max(np.abs(rec.field)))
         h = np.linspace(-peak, peak, 201)
-        shape = [values[n] for n in EFFECT_PARAMETERS["input_map"]]
+        shape = [values[n] for n in INPUT_MAP_NAMES]
         return [("input_map", "Input map: true field against recorded field", "recorded H (A/m)", "true H (A/m)",
                  [("fitted", h, mapped_field(h, *shape)), ("identity", h, h)])]
     if effect == "sensor_map":
@@ -182,17 +131,11 @@ def _verdict_words(report) -> str:
     values.update(physical_params(fit))
     params = ", ".join(_fmt(n, values, fit.uncertainties) for n in names if fit.model.parameters.get(n) is None
                        or fit.model.parameters[n].free or n == "alpha")
-    extra = ""
-    if chosen.effect == "thermal_drift":
-        extra = f" ({thermal_change_words(fit.model.recording, values)})"
-    if chosen.effect == "quadratic_magnetostriction" and values.get("zeta_q"):
-        extra = (f" (an M^2 law: zetahat/(2*zeta_q) = {values['zetahat'] / (2 * values['zeta_q']):.4g} A/m "
-                 f"is the bias magnetization it implies)") if "zetahat" in values else ""
+    details = registered(chosen.effect).details
+    extra = "" if details is None else details(values, fit.model.recording)
     if continuum.get("named"):
         extra = (f" (continuum mechanics, {continuum['explained_by']}; nominal lumped first resonance "
                  f"{continuum['first_resonance_hz']:.4g} Hz)")
-    if chosen.effect == "mains_pickup":
-        extra = f" (at {values['mains_hz']:.0f} Hz, the better fit of 50 and 60 Hz)"
     runner = sorted([c for c in report.candidates if c is not chosen], key=lambda c: -c.improvement)
     second = f" The runner-up, {runner[0].effect}, reached {100 * runner[0].improvement:.0f} %." if runner else ""
     how = "Modelling it" if continuum.get("named") else "Adding it to the base model"
@@ -257,7 +200,9 @@ def write_plots(report, directory) -> list[Path]:
             ax.legend(markerscale=6, fontsize=8)
     fig.suptitle(f"Residual maps: {report.verdict}")
     fig.tight_layout()
-    paths.append(directory / "residual_maps.png"); fig.savefig(paths[-1], dpi=110); plt.close(fig)
+    paths.append(directory / "residual_maps.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
 
     fig, axes = plt.subplots(1, len(channels), figsize=(5.5 * len(channels), 4.4), squeeze=False)
     for col, ch in enumerate(channels):
@@ -265,11 +210,14 @@ def write_plots(report, directory) -> list[Path]:
         ax.plot(rec.field, rec.output(ch), color="0.6", lw=0.6, label="recording")
         for label, pred in predictions:
             ax.plot(rec.field, pred[ch], lw=0.8, label=label)
-        ax.set_xlabel("field H (A/m)"); ax.set_ylabel(f"{ch} ({'A/m' if ch == 'magnetization' else 'm'})")
+        ax.set_xlabel("field H (A/m)")
+        ax.set_ylabel(f"{ch} ({'A/m' if ch == 'magnetization' else 'm'})")
         ax.legend(fontsize=8)
     fig.suptitle("Loops, before and after")
     fig.tight_layout()
-    paths.append(directory / "loops.png"); fig.savefig(paths[-1], dpi=110); plt.close(fig)
+    paths.append(directory / "loops.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
 
     fig, axes = plt.subplots(len(channels), 1, figsize=(11, 3.2 * len(channels)), squeeze=False)
     for row, ch in enumerate(channels):
@@ -278,16 +226,24 @@ def write_plots(report, directory) -> list[Path]:
         for label, pred in predictions:
             ax.plot(rec.time, pred[ch], lw=0.8, label=label)
         ax.axvspan(cut_time, rec.time[-1], color="y", alpha=0.12, label="held out")
-        ax.set_xlabel("time (s)"); ax.set_ylabel(ch)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel(ch)
         ax.legend(fontsize=8, ncol=4)
     fig.tight_layout()
-    paths.append(directory / "traces.png"); fig.savefig(paths[-1], dpi=110); plt.close(fig)
+    paths.append(directory / "traces.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
 
     for stem, title, xlabel, ylabel, curves in (slot_shapes(after) if after is not None else []):
         fig, ax = plt.subplots(figsize=(5.5, 4.2))
         for label, x, y in curves:
             ax.plot(x, y, lw=1.2, label=label, ls="--" if label in ("identity", "without the effect") else "-")
-        ax.set_title(title, fontsize=10); ax.set_xlabel(xlabel); ax.set_ylabel(ylabel); ax.legend(fontsize=8)
+        ax.set_title(title, fontsize=10)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+        ax.legend(fontsize=8)
         fig.tight_layout()
-        paths.append(directory / f"{stem}.png"); fig.savefig(paths[-1], dpi=110); plt.close(fig)
+        paths.append(directory / f"{stem}.png")
+        fig.savefig(paths[-1], dpi=110)
+        plt.close(fig)
     return paths

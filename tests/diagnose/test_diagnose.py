@@ -159,12 +159,11 @@ def test_fem_base_fits_the_tip_damper():
     heavy tip mass cL sets the first mode's damping. On the generator's FEM rod (true cL = 1000 N s/m,
     integrated by scipy from the state matrices, not by the fitter's first-order hold) the fit recovers
     it within 40 %."""
-    from hyst_gym.diagnose.core import _split, calibrate
-    from hyst_gym.diagnose.model import Structure, noise_level
+    from hyst_gym.diagnose.fit import Split
+    from hyst_gym.diagnose.hypothesize import calibrate
+    from hyst_gym.diagnose.model import Structure
 
     recording, _ = make_recording("rod_dynamics", 0, output="displacement", n_samples=2000)
-    fit_mask, _ = _split(recording.size, 0.3)
-    weights = {ch: noise_level(recording.output(ch)) for ch in recording.channels}
-    fit = calibrate(recording, Structure("fem"), weights, fit_mask, float(np.ptp(recording.field)) / 400)
+    fit = calibrate(Split.of(recording, 0.3), Structure("fem"))
     assert fit.model.parameters["cL"].free
     assert 700.0 < fit.values["cL"] < 1400.0

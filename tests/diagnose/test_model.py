@@ -24,8 +24,10 @@ def test_plain_members_match_physics_kernel():
     """With every extension off, the extended kernel is the physics model (6) driven from 0."""
     time = np.linspace(0, 1, 801)
     field = 8e4 * np.sin(2 * np.pi * 2 * time) * np.exp(-time)
-    row = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=0, heating=0, tau_th=1, beta_Ms=0, chi_r=0, heating_exponent=2)
-    ours = simulate_members(time, field, np.array([[row[c] for c in MAGNETIC_COLUMNS]]), 0, 10.0, AMBIENT_TEMPERATURE)[:, 0]
+    row = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=0, heating=0, tau_th=1, beta_Ms=0,
+               chi_r=0, heating_exponent=2)
+    ours = simulate_members(time, field, np.array([[row[c] for c in MAGNETIC_COLUMNS]]), 0, 10.0,
+                            AMBIENT_TEMPERATURE)[:, 0]
     ref = simulate_magnetization(np.concatenate([[0.0], field]), max_field_step=10.0, a=6000, k=1500,
                                  alpha=-0.05, Ms=8e5, c=0.2)[1:]
     assert np.max(np.abs(ours - ref)) < 1e-9 * 8e5
@@ -36,7 +38,8 @@ def test_small_loop_members_match_the_physics_extension_and_share_the_bank_with_
     (6): both give the physics layer's numbers when simulated together."""
     time = np.linspace(0, 1, 801)
     field = 8e4 * np.sin(2 * np.pi * 2 * time) * np.exp(-time)
-    plain = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=0, heating=0, tau_th=1, beta_Ms=0, chi_r=0, heating_exponent=2)
+    plain = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=0, heating=0, tau_th=1, beta_Ms=0,
+               chi_r=0, heating_exponent=2)
     rows = np.array([[dict(plain, chi_r=chi)[c] for c in MAGNETIC_COLUMNS] for chi in (0.0, 30.0, 60.0)])
     ours = simulate_members(time, field, rows, 0, 10.0, AMBIENT_TEMPERATURE)
     for column, chi in enumerate((0.0, 30.0, 60.0)):
@@ -51,7 +54,8 @@ def test_eddy_current_converges_and_lags():
     def run(n, k_e):
         time = np.linspace(0, 0.05, n)
         field = 6e4 * np.sin(2 * np.pi * 40 * time)
-        row = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=k_e, heating=0, tau_th=1, beta_Ms=0, chi_r=0, heating_exponent=2)
+        row = dict(a=6000, k=1500, alpha=-0.05, Ms=8e5, c=0.2, H0=0, k_e=k_e, heating=0, tau_th=1,
+                   beta_Ms=0, chi_r=0, heating_exponent=2)
         return simulate_members(time, field, np.array([[row[c] for c in MAGNETIC_COLUMNS]]), 0, 10.0,
                                 AMBIENT_TEMPERATURE)[:, 0]
     coarse, fine, finest = run(501, 2e-5)[::1], run(2001, 2e-5)[::4], run(8001, 2e-5)[::16]
@@ -80,10 +84,10 @@ def test_base_fit_recovers_truth_to_noise():
     rec, _, truth = make_recording_with_truth("none", 11, n_samples=1500)
     structure = Structure()
     model = Model(rec, structure, base_parameters(rec, structure), float(np.ptp(rec.field)) / 1000)
-    weights = {ch: noise_level(rec.output(ch)) for ch in rec.channels}
+    noise = {ch: noise_level(rec.output(ch)) for ch in rec.channels}
     start = {n: truth[n] * 1.05 for n in ("a", "k", "Ms", "khat", "chat", "zetahat", "M0")}
     start.update(rho=truth["rho"], c=truth["c"])
-    fit = local_fit(model, weights, np.ones(rec.size, bool), start, max_nfev=60)
+    fit = local_fit(model, noise, np.ones(rec.size, bool), start, max_nfev=60)
     assert fit.sse / fit.n_residuals < 1.3          # explained to within noise
     for name in ("a", "k", "Ms"):
         assert abs(fit.values[name] / truth[name] - 1) < 0.03
@@ -228,7 +232,7 @@ def test_additive_sensor_terms_are_what_they_say():
     """sensor_drift adds f and f^2 (f: the time mapped to [0, 1], 0 at the start) in units of the channel's
     half-span, mains_pickup a 50/60 Hz sinusoid and its third harmonic (the FFT peaks at the stated
     frequencies); both vanish at zero coefficients."""
-    from hyst_gym.diagnose.core import mains_starts
+    from hyst_gym.diagnose.hypothesize import mains_starts
     from hyst_gym.diagnose.model import channel_range
 
     recording, _, _ = make_recording_with_truth("none", 3, output="both", n_samples=4000)
@@ -264,7 +268,7 @@ def test_additive_sensor_terms_are_what_they_say():
     noisy = replaced(recording, magnetization=recording.magnetization + added)
     fitted = Model(noisy, structure, params, 200.0)
     fit_mask = np.arange(time.size) < 0.75 * time.size
-    weights = {ch: noise_level(noisy.output(ch)) for ch in noisy.channels}
-    best = mains_starts(fitted, values, weights, fit_mask)[0]
+    noise = {ch: noise_level(noisy.output(ch)) for ch in noisy.channels}
+    best = mains_starts(fitted, values, noise, fit_mask)[0]
     assert best["mains_hz"] == 60.0
     assert best["mains_sin_m"] > 0.05 and best["mains3_cos_m"] > 0.05  # the pickup's own sign and order

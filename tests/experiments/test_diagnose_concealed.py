@@ -51,7 +51,8 @@ def test_speed_script_times_the_slowest_rows_alone():
 
     rows = [{"seconds": "3.0", "id": "a", "generator": "own"}, {"seconds": "12.5", "id": "b", "generator": "own"},
             {"seconds": "7", "id": "c", "generator": "own"}, {"seconds": "20", "id": "d", "generator": "independent"},
-            {"seconds": "25", "id": "e", "generator": "independent"}, {"seconds": "1", "id": "f", "generator": "independent"}]
+            {"seconds": "25", "id": "e", "generator": "independent"},
+            {"seconds": "1", "id": "f", "generator": "independent"}]
     # per generator: the own recordings, regenerated longer than they ran in the study, are not crowded out
     assert [r["id"] for r in slowest_rows(rows, 2)] == ["b", "c", "e", "d"]
     common = {"generator": "own", "channels": "both", "effect": "rod_dynamics", "seed": 100,

@@ -7,7 +7,7 @@ import pytest
 
 from experiments import other_forms
 from hyst_gym.diagnose import diagnose
-from hyst_gym.diagnose.core import first_resonance_hz
+from hyst_gym.diagnose.continuum import first_resonance_hz
 
 
 def test_continuum_rod_is_explained_by_the_finite_element_base():

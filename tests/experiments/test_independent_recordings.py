@@ -305,12 +305,14 @@ def test_effects_act_the_way_their_physics_says():
 
 def test_effect_lists_match_the_tools_vocabulary():
     """EFFECTS_IN_VOCABULARY (less "none") is the tool's EFFECTS (read from its source, so the
-    fitter is not imported), each by the name the tool gives it (TOOL_NAMES: a family of the tool
-    can hold an effect of another name); when the tool learns an effect such as delta_e, flip its
-    ``in_vocabulary`` flag in EFFECT_SPECS."""
-    tree = ast.parse((ROOT / "hyst_gym" / "diagnose" / "model.py").read_text())
-    tool = next(ast.literal_eval(node.value) for node in tree.body
-                if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "EFFECTS" for t in node.targets))
+    fitter is not imported: the ``name`` of each ``Effect(...)`` entry of its registry), each by the name
+    the tool gives it (TOOL_NAMES: a family of the tool can hold an effect of another name); when the tool
+    learns an effect such as delta_e, flip its ``in_vocabulary`` flag in EFFECT_SPECS."""
+    tree = ast.parse((ROOT / "hyst_gym" / "diagnose" / "effects.py").read_text())
+    tool = [ast.literal_eval(keyword.value) for node in ast.walk(tree)
+            if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "Effect"
+            for keyword in node.keywords if keyword.arg == "name"]
+    assert len(tool) >= 10 and len(set(tool)) == len(tool)
     assert {ir.TOOL_NAMES.get(e, e) for e in ir.EFFECTS_IN_VOCABULARY} - {"none"} == set(tool) - set(ir.NOT_CONCEALED)
     assert set(ir.TOOL_NAMES) <= set(ir.EFFECTS_IN_VOCABULARY)
     assert "none" in ir.EFFECTS_IN_VOCABULARY
@@ -321,7 +323,8 @@ def test_effect_lists_match_the_tools_vocabulary():
 # ---------------------------------------------------------------------------- independence
 
 FORBIDDEN = ("hyst_gym.physics", "hyst_gym.estimation", "hyst_gym.diagnose.kernels", "hyst_gym.diagnose.model",
-             "hyst_gym.diagnose.fit", "hyst_gym.diagnose.core", "hyst_gym.diagnose.make_recording")
+             "hyst_gym.diagnose.fit", "hyst_gym.diagnose.core", "hyst_gym.diagnose.make_recording",
+             "hyst_gym.diagnose.effects", "hyst_gym.diagnose.hypothesize", "hyst_gym.diagnose.pipeline")
 
 
 def test_module_imports_only_numpy_scipy_stdlib_and_the_recording_format():

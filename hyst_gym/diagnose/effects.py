@@ -1,0 +1,637 @@
+"""The mismatch tool's vocabulary: one frozen :class:`Effect` per effect, in one registry.
+
+Every stage reads what it needs about an effect from here: the model its parameters (ranges and
+starts), the hypothesize stage its fit strategy, starts and rescue, the decision its main parameter
+and plausibility checks, the identifiability tables its rate dependence and confusable partners, the
+report its slot and words. What is *not* here is the effect's forward term (the kernel, in
+:mod:`.model`, which reads parameters by name) and its generator (:mod:`.make_recording`). A new
+effect touches this registry, the kernel, the generator and a test (``docs/architecture.md``).
+
+Each field is required unless it says otherwise, so a forgotten entry fails when the module is
+imported, not later as a check that silently does not run. The registry's order is the order in
+which the candidates are tried and reported.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field as dataclass_field
+from types import MappingProxyType
+
+import numpy as np
+
+from ..physics.constants import PAPER_STIFFNESS, ROOM_TEMPERATURE
+from .parameter import Parameter, slope_factor
+
+#: Saturation magnetization (A/m) assumed where a record has no magnetization channel.
+PAPER_MS = 7.65e5
+#: The channel sets a recording can have (:func:`.identifiability.channel_set`).
+CHANNEL_SETS = ("magnetization", "displacement", "both")
+#: Parameter names of the per-channel families (one set per output channel).
+SENSOR_MAP_NAMES = {"magnetization": ("sensor_quadratic_m", "sensor_cubic_m"),
+                    "displacement": ("sensor_quadratic_x", "sensor_cubic_x")}
+DRIFT_NAMES = {"magnetization": ("drift_linear_m", "drift_quadratic_m"),
+               "displacement": ("drift_linear_x", "drift_quadratic_x")}
+MAINS_NAMES = {ch: tuple(f"{term}_{ch[0]}" for term in ("mains_cos", "mains_sin", "mains3_cos", "mains3_sin"))
+               for ch in ("magnetization", "displacement")}
+#: The input map's coefficients in the order :func:`.model.mapped_field` takes them.
+INPUT_MAP_NAMES = ("input_quadratic", "input_cubic", "input_saturation", "input_saturation_negative")
+#: Mains pickup needs this many cycles in the record (a sinusoid of known frequency is fixed by a few)
+#: and its third harmonic below the Nyquist frequency.
+MAINS_MIN_CYCLES = 3
+
+
+# ---------------------------------------------------------------------------- which parameter identifies it
+
+
+@dataclass(frozen=True)
+class FirstFree:
+    """The effect is identified by the first free parameter of ``names`` (else the last of them)."""
+
+    names: tuple
+
+    def choose(self, fit, effect) -> str:
+        parameters = fit.model.parameters
+        return next((n for n in self.names if n in parameters and parameters[n].free), self.names[-1])
+
+
+@dataclass(frozen=True)
+class BestDetermined:
+    """A family whose shape is spread over several coefficients: the block check refits the one the
+    record determines best (largest |value|/sigma), which a real map or drift shares across the blocks
+    while a family bent to mimic something else is pulled to different values by each block's
+    excitation."""
+
+    def choose(self, fit, effect) -> str | None:
+        scored = [(abs(fit.values[n]) / (fit.uncertainties.get(n) or np.inf), n) for n in effect.parameter_names
+                  if n in fit.model.parameters and fit.model.parameters[n].free]
+        scored = [(z if np.isfinite(z) else 0.0, n) for z, n in scored]
+        return max(scored)[1] if scored else None
+
+
+@dataclass(frozen=True)
+class NoParameter:
+    """The effect swaps a law and adds no parameter: nothing to refit per block. ``why`` says so."""
+
+    why: str
+
+    def choose(self, fit, effect) -> None:
+        return None
+
+
+# ---------------------------------------------------------------------------- the record's scales
+
+
+@dataclass(frozen=True)
+class Frame:
+    """The scales of a record that set the parameters' ranges: peak field (A/m), duration (s),
+    median step (s) and the absolute field rate per step (A/m/s)."""
+
+    h_max: float
+    duration: float
+    dt: float
+    rate: np.ndarray
+
+    @classmethod
+    def of(cls, recording) -> "Frame":
+        field, time = recording.field, recording.time
+        return cls(h_max=float(np.max(np.abs(field))) or 1.0, duration=float(time[-1] - time[0]),
+                   dt=float(np.median(np.diff(time))), rate=np.abs(np.diff(field)) / np.diff(time))
+
+
+def _output_free(recording, structure, channel) -> bool:
+    """Whether a per-channel parameter of ``channel`` is fitted: the channel is recorded and explained."""
+    return channel in recording.channels and (channel == "magnetization" or structure.transducer != "none")
+
+
+def _has_displacement(recording, structure) -> bool:
+    return "displacement" in recording.channels and structure.transducer != "none"
+
+
+# ---------------------------------------------------------------------------- parameters, per effect
+# Each builder: (recording, structure, base values) -> {name: Parameter}, in the order they are fitted.
+
+
+def _field_bias_parameters(recording, structure, base_values):
+    h_max = Frame.of(recording).h_max
+    return {"H0": Parameter("H0", 0.0, -h_max, h_max, "A/m", scale=0.01 * h_max)}
+
+
+def _eddy_parameters(recording, structure, base_values):
+    frame = Frame.of(recording)
+    ms = base_values.get("Ms", PAPER_MS)
+    dm_dt = ms * float(np.percentile(frame.rate, 95)) / frame.h_max + 1e-30
+    upper = 2.0 * frame.h_max / dm_dt
+    return {"k_e": Parameter("k_e", 1e-3 * upper, 0.0, upper, "s", scale=1e-2 * upper)}
+
+
+def _thermal_parameters(recording, structure, base_values):
+    frame = Frame.of(recording)
+    mean_sq = float(np.mean(recording.field ** 2)) or 1.0
+    upper = 300.0 / (mean_sq * frame.duration)  # at most ~300 K of heating over the record
+    return {
+        "heating": Parameter("heating", 0.01 * upper, 0.0, upper, "K/s per (A/m)^2", scale=0.01 * upper),
+        "tau_th": Parameter("tau_th", frame.duration, 5 * frame.dt, 1e3 * frame.duration, "s", log=True),
+        "beta_Ms": Parameter("beta_Ms", 0.0, -0.01, 0.01, "1/K", scale=1e-3),
+        # the family's heating law: drive ~ |H|^p (Joule heating of a current-driven coil: p = 2;
+        # core or hysteresis loss: p between 1 and 3)
+        "heating_exponent": Parameter("heating_exponent", 2.0, 0.5, 4.0, "1", scale=0.5),
+    }
+
+
+def _sensor_lag_parameters(recording, structure, base_values):
+    frame = Frame.of(recording)
+    out = {}
+    for name, channel in (("tau_m", "magnetization"), ("tau_x", "displacement")):
+        free = _output_free(recording, structure, channel)
+        out[name] = Parameter(name, frame.dt if free else 0.0, 0.0, 0.05 * frame.duration, "s", scale=frame.dt,
+                              free=free)
+    return out
+
+
+def _quadratic_parameters(recording, structure, base_values):
+    m_span = base_values.get("Ms", PAPER_MS)
+    gain = abs(next((base_values[g] for g in ("zetahat", "nu", "zeta_fem") if g in base_values), 1.0)) or 1.0
+    return {"zeta_q": Parameter("zeta_q", 0.0, -1e3 * gain / m_span, 1e3 * gain / m_span,
+                                "gain units per A/m", scale=0.1 * gain / m_span)}
+
+
+def _delta_e_parameters(recording, structure, base_values):
+    return {"delta_e": Parameter("delta_e", 0.0, -0.5, 3.0, "1 (relative stiffness change, M = 0 to Ms)", scale=0.1),
+            "delta_e_linear": Parameter("delta_e_linear", 0.0, -3.0, 3.0,
+                                        "1 (relative stiffness change per unit M/Ms)", scale=0.1)}
+
+
+def _input_map_parameters(recording, structure, base_values):
+    # monotone on |u| <= 1 needs 1 + 2*q*u + 3*c*u^2 > 0: c >= -1/3 at q = 0 (a tanh's cubic term);
+    # gain at the peak field down to 1/sqrt(1 + 30) = 0.18 of the small-signal gain
+    return {
+        "input_quadratic": Parameter("input_quadratic", 0.0, -0.5, 0.5, "1 (per unit H/max|H|)", scale=0.05),
+        "input_cubic": Parameter("input_cubic", 0.0, -0.33, 1.0, "1 (per unit (H/max|H|)^2)", scale=0.05),
+        "input_saturation_negative": Parameter("input_saturation_negative", 0.0, 0.0, 30.0,
+                                               "1 (per unit (H/max|H|)^2, where H < 0)", scale=0.5),
+        "input_saturation": Parameter("input_saturation", 0.0, 0.0, 30.0, "1 (per unit (H/max|H|)^2, where H >= 0)",
+                                      scale=0.5),
+    }
+
+
+def _per_channel_terms(names_by_channel, lower, upper, scale):
+    """Builder of a per-output-channel additive or map family with coefficients in units of the
+    channel's half-span, free where the channel is recorded and explained."""
+    def build(recording, structure, base_values):
+        out = {}
+        for channel, names in names_by_channel.items():
+            free = _output_free(recording, structure, channel)
+            for name in names:
+                out[name] = Parameter(name, 0.0, lower, upper, "1 (of the channel's half-span)", scale=scale,
+                                      free=free)
+        return out
+    return build
+
+
+def _mains_parameters(recording, structure, base_values):
+    out = {"mains_hz": Parameter("mains_hz", 50.0, 45.0, 65.0, "Hz", free=False)}
+    out.update(_per_channel_terms(MAINS_NAMES, -1.0, 1.0, 0.01)(recording, structure, base_values))
+    return out
+
+
+def _small_loop_parameters(recording, structure, base_values):
+    # a reversible susceptibility up to three times the anhysteretic's initial slope
+    # Ms*slope_factor/a (fits to measured ferrite loops give 0.4-0.8 times it)
+    h_max = Frame.of(recording).h_max
+    initial_slope = (base_values.get("Ms", PAPER_MS) * slope_factor(structure.curve)
+                     / base_values.get("a", h_max / 5))
+    return {"chi_r": Parameter("chi_r", 0.0, 0.0, 3.0 * initial_slope, "1 (reversible low-field susceptibility)",
+                               scale=0.1 * initial_slope)}
+
+
+def _rod_parameters(recording, structure, base_values):
+    dt = Frame.of(recording).dt
+    f1 = np.sqrt(base_values.get("khat", PAPER_STIFFNESS)) / (2 * np.pi)
+    nyquist = 0.5 / dt
+    return {"f2": Parameter("f2", min(5 * f1, 0.6 * nyquist), 1.2 * f1, 0.98 * nyquist, "Hz", log=True),
+            "damping2": Parameter("damping2", 0.05, 1e-3, 2.0, "1", log=True),
+            "g2": Parameter("g2", 0.0, -1.0, 1.0, "1 (static gain relative to mode 1)", scale=0.01)}
+
+
+def _no_parameters(recording, structure, base_values):
+    return {}
+
+
+# ---------------------------------------------------------------------------- starts, per effect
+# Each: (model, start = base values with the effect's parameters at their initial values) -> starts.
+
+
+def _rod_starts(model, start):
+    p = model.parameters
+    return [dict(start, f2=f, g2=0.02) for f in np.geomspace(p["f2"].lower * 1.5, p["f2"].upper * 0.9, 3)]
+
+
+def _quadratic_starts(model, start):
+    gain = next((start[g] for g in ("zetahat", "nu", "zeta_fem") if g in start), 1.0)
+    scale = gain / (2 * max(abs(start.get("M0", 0.0)), 0.3 * start.get("Ms", 1.0)))
+    return [dict(start, zeta_q=s * scale) for s in (1.0, -1.0)]
+
+
+def _field_bias_starts(model, start):
+    h = model.parameters["H0"].upper
+    return [dict(start, H0=s * 0.05 * h) for s in (-1, 1)]
+
+
+def _eddy_starts(model, start):
+    return [dict(start, k_e=model.parameters["k_e"].upper * 1e-2)]
+
+
+def _thermal_starts(model, start):
+    p = model.parameters
+    return [dict(start, heating=p["heating"].upper * 0.05, tau_th=p["tau_th"].value)]
+
+
+def _small_loop_starts(model, start):
+    return [dict(start, chi_r=model.parameters["chi_r"].upper * f) for f in (0.02, 0.2)]
+
+
+def _input_map_starts(model, start):
+    # from the identity and from a moderate saturation (gain at the peak field 0.7 of the small-signal one)
+    return [start, dict(start, input_saturation=1.0, input_saturation_negative=1.0)]
+
+
+def _from_initial(model, start):
+    return [start]
+
+
+# ---------------------------------------------------------------------------- shapes the checks and report read
+
+
+def mapped_field(field, quadratic, cubic, saturation, saturation_negative):
+    """The ``input_map`` family: the true field (A/m) for the recorded ``field`` (A/m),
+    ``H*(1 + quadratic*u + cubic*u^2)/sqrt(1 + s*u^2)`` with u = H/max|H| and s = ``saturation``
+    where u >= 0, ``saturation_negative`` where u < 0: a polynomial and an algebraic sigmoid (close to
+    tanh) in one family, the identity when all four vanish.
+
+    Why two saturations: an amplifier's rails are often unequal, so it saturates at another field on
+    each side; the two sides join with equal value and slope at u = 0 (s*u^2 has zero slope there),
+    and each side is monotone for any s >= 0 (slope (1 + s*u^2)**-1.5 at q = c = 0), where a
+    polynomial asymmetry (q) large enough to mimic unequal rails would fold back."""
+    if quadratic == 0.0 and cubic == 0.0 and saturation == 0.0 and saturation_negative == 0.0:
+        return field
+    u = field / (float(np.max(np.abs(field))) or 1.0)
+    s = np.where(u >= 0.0, saturation, saturation_negative)
+    return np.ascontiguousarray(field * (1.0 + quadratic * u + cubic * u ** 2) / np.sqrt(1.0 + s * u ** 2))
+
+
+def _input_map_slopes(values, channels, u):
+    q, c, s_pos, s_neg = (values[n] for n in INPUT_MAP_NAMES)
+    s = np.where(u >= 0.0, s_pos, s_neg)
+    root = np.sqrt(1.0 + s * u ** 2)
+    # d/du [u*(1 + q*u + c*u^2)/sqrt(1 + s*u^2)], s constant on each side (mapped_field)
+    slope = (1.0 + 2 * q * u + 3 * c * u ** 2) / root - s * u ** 2 * (1.0 + q * u + c * u ** 2) / root ** 3
+    return [("input map", slope)]
+
+
+def _sensor_map_slopes(values, channels, u):
+    out = []
+    for channel in channels:
+        q2, q3 = (values[n] for n in SENSOR_MAP_NAMES[channel])
+        out.append((f"{channel} sensor map", 1.0 + 2 * q2 * u + 3 * q3 * u ** 2))
+    return out
+
+
+def temperature_rise_trace(recording, values) -> np.ndarray:
+    """K per sample: the fitted thermal model's temperature rise, dT/dt = heating*H^2 - T/tau_th
+    integrated exactly over each sample interval (H held), from 0 at the first sample."""
+    decay = np.exp(-np.diff(recording.time) / values["tau_th"])
+    exponent = values.get("heating_exponent", 2.0)
+    h_ref = float(np.sqrt(np.mean(recording.field ** 2))) or 1.0
+    drive = values["heating"] * values["tau_th"] * h_ref ** 2 * np.abs(recording.field[:-1] / h_ref) ** exponent
+    trace = np.zeros(len(recording.time))
+    for i, (factor, target) in enumerate(zip(decay, drive)):
+        trace[i + 1] = target + (trace[i] - target) * factor
+    return trace
+
+
+def record_temperature_rise(recording, values) -> float:
+    """K: the fitted thermal model's temperature rise from the first to the last sample. Unlike a
+    steady-state rise, it stays meaningful when tau_th is much longer than the record."""
+    return float(temperature_rise_trace(recording, values)[-1])
+
+
+def thermal_change_words(recording, values) -> str:
+    """What a thermal_drift fit determines, in words: the change of a and Ms over the record, and the
+    temperature rise that the laws a ~ T (4) and Ms*(1 - beta*theta) imply.
+
+    Why both: without a temperature channel the record determines how a and Ms changed, not the
+    temperature; the rise is read off through the a(T) law, so it is only as right as that law (near a
+    Curie point, say, a and Ms change far faster per kelvin than a ~ T and the implied rise is too
+    large). The report says so instead of stating the rise as a measurement."""
+    rise = record_temperature_rise(recording, values)
+    a_change = rise / ROOM_TEMPERATURE  # a ~ T: relative change of a = rise / T_amb
+    ms_change = -values.get("beta_Ms", 0.0) * rise
+    return (f"over the record a changes by {100 * a_change:+.3g} % and Ms by {100 * ms_change:+.3g} %; the "
+            f"temperature rise that the law a ~ T (4) implies is {rise:.3g} K, an inference through that law, "
+            f"not a measurement: the record determines the changes of a and Ms, and the rise is right only where "
+            f"a(T) is proportional to T (not near a Curie point); a temperature channel would measure it")
+
+
+def _thermal_details(values, recording) -> str:
+    return f" ({thermal_change_words(recording, values)})"
+
+
+def _quadratic_details(values, recording) -> str:
+    if not values.get("zeta_q") or "zetahat" not in values:
+        return ""
+    return (f" (an M^2 law: zetahat/(2*zeta_q) = {values['zetahat'] / (2 * values['zeta_q']):.4g} A/m "
+            f"is the bias magnetization it implies)")
+
+
+def _mains_details(values, recording) -> str:
+    return f" (at {values['mains_hz']:.0f} Hz, the better fit of 50 and 60 Hz)"
+
+
+# ---------------------------------------------------------------------------- applicability
+
+
+def _always(recording, structure) -> bool:
+    return True
+
+
+def _mains_applies(recording, structure) -> bool:
+    """A real time axis with ``MAINS_MIN_CYCLES`` cycles of 50 Hz and the 60 Hz third harmonic below Nyquist."""
+    duration = float(recording.time[-1] - recording.time[0])
+    nyquist = 0.5 / float(np.median(np.diff(recording.time)))
+    rated = recording.metadata.get("time_axis") != "synthetic"
+    return duration * 50.0 >= MAINS_MIN_CYCLES and nyquist > 3 * 60.0 and rated
+
+
+def _magnetostriction_applies(recording, structure) -> bool:
+    # the nonlinear lumped base holds the M^2 law already
+    return _has_displacement(recording, structure) and structure.transducer != "lumped_nonlinear"
+
+
+def _lumped_mechanics_applies(recording, structure) -> bool:
+    return _has_displacement(recording, structure) and structure.transducer in ("lumped", "lumped_nonlinear")
+
+
+# ---------------------------------------------------------------------------- separating measurements
+
+_RECORD_M = "record the magnetization (a pick-up coil) beside the displacement"
+_BROADBAND = "excite above the first resonance (a broadband or chirp drive up to the sensor's Nyquist frequency)"
+_TEMPERATURE = "record the coil or rod temperature"
+_AMPLITUDES = ("record loops at several amplitudes, down to a tenth of the largest (small loops show the low-field "
+               "susceptibility)")
+_SLOW = "repeat the record at a lower and a higher drive frequency (rate effects scale with frequency)"
+_CALIBRATE_SENSOR = "calibrate the sensor against a reference (a static map of the sensor does not follow the drive)"
+_AFTER_MECHANICS = (_BROADBAND + ": a sensor's static map acts after the mechanics, a magnetostriction or "
+                    "stiffness law before them")
+_MAINS_CYCLES = ("record longer (many mains cycles) or a stretch with the drive off: pickup repeats at 50/60 Hz, "
+                 "a drift does not")
+
+
+def _everywhere(measurement: str) -> dict:
+    return {cs: measurement for cs in CHANNEL_SETS}
+
+
+# ---------------------------------------------------------------------------- the registry
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One effect of the vocabulary: an extension of the base model that fills one slot of its chain.
+
+    Attributes
+    ----------
+    name : its id (the verdict that names it)
+    slot : the slot of the model chain it fills, in an engineer's words
+    words : what it is, in a sentence of the report
+    parameter_names : the parameters it adds (empty: it swaps a law)
+    parameters : ``(recording, structure, base values) -> {name: Parameter}``: ranges, initial values, units
+    identified_by : which parameter the block-consistency check refits (:class:`FirstFree`, a name,
+        :class:`BestDetermined`, :class:`NoParameter` with the reason)
+    applies : ``(recording, structure) -> bool``: whether the base structure and the record can show it
+    rate_dependent : its signature needs a real time axis (a rate, a delay or a resonance)
+    confusable : ``{partner: {channel set: measurement that separates the two}}``; each pair is listed on
+        one of its two effects
+    rescue : parameters searched again with the hysteresis when the local fit misses by far
+        (:func:`.hypothesize.rescue`); None: no rescue (it searches globally already, or is linear)
+    starts : ``(model, start) -> [starts]`` of its local fit
+    strategy : how the hypothesize stage fits it (:data:`.hypothesize.STRATEGIES`)
+    mechanical : it acts on the displacement path only (invisible with magnetization alone)
+    swaps_curve : it swaps the anhysteretic curve (Ising <-> Langevin)
+    channel_terms : per output channel, its coefficients that are linear in the recorded output
+    search_ranges : its parameters whose bounds are search ranges, not physical walls
+    slopes : ``(values, channels, u) -> [(what, slope)]`` of a static map, which must be monotone
+    loop_offset : the parameter that must show as a horizontal offset of the recorded loop
+    details : ``(values, recording) -> str`` added to the report's sentence
+    """
+
+    name: str
+    slot: str
+    words: str
+    parameter_names: tuple
+    parameters: Callable
+    identified_by: object
+    applies: Callable
+    rate_dependent: bool
+    confusable: Mapping
+    rescue: tuple | None
+    starts: Callable = _from_initial
+    strategy: str = "local"
+    mechanical: bool = False
+    swaps_curve: bool = False
+    channel_terms: Mapping = dataclass_field(default_factory=dict)
+    search_ranges: tuple = ()
+    slopes: Callable | None = None
+    loop_offset: str | None = None
+    details: Callable | None = None
+
+    def main_parameter(self, fit) -> str | None:
+        """The parameter the block-consistency check refits in ``fit`` (None: none)."""
+        if isinstance(self.identified_by, str):
+            return self.identified_by
+        return self.identified_by.choose(fit, self)
+
+
+_REGISTERED = (
+    Effect(
+        name="thermal_drift", slot="time variation of the material parameters (a(t), Ms(t))",
+        words="thermal drift: the material heats up during the record and its anhysteretic parameter a "
+              "moves with temperature (a ~ T, eq. 4)",
+        parameter_names=("heating", "tau_th", "beta_Ms", "heating_exponent"), parameters=_thermal_parameters,
+        identified_by="heating", applies=_always, rate_dependent=False, rescue=("heating",),
+        starts=_thermal_starts, search_ranges=("tau_th", "heating_exponent"), details=_thermal_details,
+        confusable={"anhysteretic_shape": _everywhere(_TEMPERATURE),
+                    "delta_e": {"displacement": _TEMPERATURE}}),
+    Effect(
+        name="eddy_current", slot="rate dependence",
+        words="eddy-current (rate-dependent) loss: the material sees H - k_e dM/dt",
+        parameter_names=("k_e",), parameters=_eddy_parameters, identified_by="k_e", applies=_always,
+        rate_dependent=True, rescue=("k_e",), starts=_eddy_starts,
+        confusable={"sensor_lag": {"magnetization": _SLOW + "; a sensor lag is a fixed delay, eddy loss widens the "
+                                                            "loop",
+                                   "displacement": _RECORD_M},
+                    "rod_dynamics": {"displacement": _RECORD_M}}),
+    Effect(
+        name="quadratic_magnetostriction", slot="magnetostriction law",
+        words="quadratic magnetostriction: the displacement follows M^2 (12), not the linearized M (13)",
+        parameter_names=("zeta_q",), parameters=_quadratic_parameters, identified_by="zeta_q",
+        applies=_magnetostriction_applies, rate_dependent=False, rescue=(), starts=_quadratic_starts,
+        strategy="quadratic_outputs", mechanical=True, details=_quadratic_details,
+        confusable={"field_bias": {"displacement": _RECORD_M},
+                    "anhysteretic_shape": {"displacement": _RECORD_M},
+                    "delta_e": {"displacement": _RECORD_M + ", and " + _BROADBAND}}),
+    Effect(
+        # damping2, not zeta2: zeta2 is the M^2 gain of lumped_nonlinear (12)
+        name="rod_dynamics", slot="mechanical dynamics (a second mode)",
+        words="rod dynamics: a second longitudinal rod mode (10) that the lumped model lacks",
+        parameter_names=("f2", "damping2", "g2"), parameters=_rod_parameters, identified_by="f2",
+        applies=_lumped_mechanics_applies, rate_dependent=True, rescue=("f2",), starts=_rod_starts,
+        mechanical=True, search_ranges=("g2", "damping2"),
+        confusable={"sensor_lag": {"displacement": _BROADBAND + ", or " + _RECORD_M, "both": _BROADBAND},
+                    "delta_e": {"both": _BROADBAND + " at two bias fields"}}),
+    Effect(
+        name="sensor_lag", slot="sensor dynamics (a lag)",
+        words="sensor lag: a first-order lag in the output sensor(s)",
+        parameter_names=("tau_m", "tau_x"), parameters=_sensor_lag_parameters,
+        identified_by=FirstFree(("tau_x", "tau_m")), applies=_always, rate_dependent=True, rescue=(),
+        confusable={}),
+    Effect(
+        name="field_bias", slot="input map (recorded to true field): an offset",
+        words="an unrecorded DC bias field H0 (e.g. a permanent magnet) added to H",
+        parameter_names=("H0",), parameters=_field_bias_parameters, identified_by="H0", applies=_always,
+        rate_dependent=False, rescue=("H0",), starts=_field_bias_starts, loop_offset="H0",
+        confusable={"anhysteretic_shape": {"magnetization": "record a loop symmetric about H = 0 at two amplitudes",
+                                           "displacement": _RECORD_M},
+                    "delta_e": {"displacement": _RECORD_M}}),
+    Effect(
+        name="anhysteretic_shape", slot="anhysteretic curve",
+        words="the other anhysteretic curve (Ising (2) <-> Langevin (3))",
+        parameter_names=(), parameters=_no_parameters,
+        identified_by=NoParameter("it swaps the curve and adds no parameter"), applies=_always,
+        rate_dependent=False, rescue=None, strategy="other_curve", swaps_curve=True,
+        confusable={"delta_e": {"displacement": _RECORD_M}}),
+    Effect(
+        name="small_loop", slot="anhysteretic curve at low field (reversible susceptibility)",
+        words="small-loop (Rayleigh) behaviour: a reversible low-field susceptibility chi_r that (6) lacks, "
+              "fading at saturation",
+        parameter_names=("chi_r",), parameters=_small_loop_parameters, identified_by="chi_r", applies=_always,
+        rate_dependent=False, rescue=None, starts=_small_loop_starts, strategy="with_hysteresis",
+        confusable={"anhysteretic_shape": {"magnetization": _AMPLITUDES,
+                                           "displacement": _AMPLITUDES + ", and " + _RECORD_M,
+                                           "both": _AMPLITUDES},
+                    "field_bias": {"magnetization": _AMPLITUDES, "displacement": _RECORD_M},
+                    "quadratic_magnetostriction": {"displacement": _RECORD_M},
+                    "delta_e": {"displacement": _RECORD_M}}),
+    Effect(
+        name="input_map",
+        slot="input map (recorded to true field): a static nonlinearity, e.g. a saturating amplifier",
+        words="an input map: the field in the material is a static nonlinear function of the recorded one "
+              "(e.g. a saturating amplifier; plotted in input_map.png)",
+        parameter_names=INPUT_MAP_NAMES, parameters=_input_map_parameters, identified_by=BestDetermined(),
+        applies=_always, rate_dependent=False,
+        rescue=("input_saturation", "input_saturation_negative", "input_cubic"), starts=_input_map_starts,
+        search_ranges=("input_saturation", "input_saturation_negative"), slopes=_input_map_slopes,
+        confusable={"anhysteretic_shape": {"magnetization": "record the coil current and the field (a Hall probe) "
+                                                            "together",
+                                           "displacement": _RECORD_M},
+                    "quadratic_magnetostriction": {"displacement": _RECORD_M}}),
+    Effect(
+        name="sensor_map", slot="sensor static map (a nonlinearity)",
+        words="a sensor nonlinearity: an output sensor reads a static nonlinear function of the true output "
+              "(plotted in sensor_map.png)",
+        parameter_names=SENSOR_MAP_NAMES["magnetization"] + SENSOR_MAP_NAMES["displacement"],
+        parameters=_per_channel_terms(SENSOR_MAP_NAMES, -0.5, 0.5, 0.05), identified_by=BestDetermined(),
+        applies=_always, rate_dependent=False, rescue=(), strategy="linear_sensor", channel_terms=SENSOR_MAP_NAMES,
+        slopes=_sensor_map_slopes,
+        confusable={"anhysteretic_shape": {"magnetization": _CALIBRATE_SENSOR,
+                                           "displacement": _RECORD_M + ", or " + _CALIBRATE_SENSOR},
+                    "quadratic_magnetostriction": {"displacement": _AFTER_MECHANICS, "both": _AFTER_MECHANICS},
+                    "delta_e": {"displacement": _AFTER_MECHANICS, "both": _AFTER_MECHANICS},
+                    "field_bias": {"displacement": _RECORD_M},
+                    "small_loop": {"displacement": _RECORD_M}}),
+    Effect(
+        name="sensor_drift", slot="sensor offset (a slow drift)",
+        words="a slow drift of a sensor's offset over the record (plotted in sensor_drift.png)",
+        parameter_names=DRIFT_NAMES["magnetization"] + DRIFT_NAMES["displacement"],
+        parameters=_per_channel_terms(DRIFT_NAMES, -1.0, 1.0, 0.01), identified_by=BestDetermined(),
+        applies=_always, rate_dependent=False, rescue=None, strategy="linear_sensor", channel_terms=DRIFT_NAMES,
+        confusable={"thermal_drift": _everywhere(_TEMPERATURE)}),
+    Effect(
+        name="mains_pickup", slot="sensor pickup (mains interference at 50/60 Hz)",
+        words="mains pickup: an output sensor picks up the 50/60 Hz mains and its third harmonic",
+        parameter_names=("mains_hz",) + MAINS_NAMES["magnetization"] + MAINS_NAMES["displacement"],
+        parameters=_mains_parameters, identified_by=BestDetermined(), applies=_mains_applies,
+        rate_dependent=False, rescue=None, strategy="mains", channel_terms=MAINS_NAMES, details=_mains_details,
+        confusable={"sensor_drift": _everywhere(_MAINS_CYCLES), "thermal_drift": _everywhere(_MAINS_CYCLES)}),
+    Effect(
+        name="delta_e", slot="stiffness (it follows the magnetization)",
+        words="the Delta-E effect: the transducer's stiffness changes with its magnetization (a quadratic in "
+              "M/Ms, plotted in stiffness.png)",
+        parameter_names=("delta_e", "delta_e_linear"), parameters=_delta_e_parameters, identified_by="delta_e",
+        applies=_lumped_mechanics_applies, rate_dependent=False, rescue=("delta_e", "delta_e_linear"),
+        mechanical=True, confusable={}),
+)
+
+#: name -> :class:`Effect`, in the order the candidates are tried.
+REGISTRY = MappingProxyType({effect.name: effect for effect in _REGISTERED})
+
+
+def effect(name: str) -> Effect:
+    """The registered effect ``name``; a one-line error naming the vocabulary if there is none."""
+    try:
+        return REGISTRY[name]
+    except KeyError:
+        raise ValueError(f"unknown effect {name!r}; expected one of {', '.join(REGISTRY)}") from None
+
+
+def _confusable_table() -> dict:
+    """``{channel set: {frozenset(pair): measurement}}`` from the registry; a pair listed twice, or with a
+    partner or channel set the registry does not know, fails here."""
+    table = {cs: {} for cs in CHANNEL_SETS}
+    for one in _REGISTERED:
+        for partner, by_channels in one.confusable.items():
+            if partner not in REGISTRY or partner == one.name:
+                raise ValueError(f"effect {one.name!r}: confusable partner {partner!r} is not another registered "
+                                 "effect")
+            for channels, measurement in by_channels.items():
+                pair = frozenset({one.name, partner})
+                if pair in table[channels]:
+                    raise ValueError(f"confusable pair {sorted(pair)} on {channels!r} is listed twice")
+                table[channels][pair] = measurement
+    return table
+
+
+# ---------------------------------------------------------------------------- views of the registry
+EFFECTS = tuple(REGISTRY)
+EFFECT_SLOTS = {e.name: e.slot for e in _REGISTERED}
+EFFECT_WORDS = {e.name: e.words for e in _REGISTERED}
+EFFECT_PARAMETERS = {e.name: e.parameter_names for e in _REGISTERED}
+RATE_EFFECTS = tuple(e.name for e in _REGISTERED if e.rate_dependent)
+MECHANICAL_EFFECTS = tuple(e.name for e in _REGISTERED if e.mechanical)
+SEARCH_RANGES_ONLY = tuple(n for e in _REGISTERED for n in e.search_ranges)
+CONFUSABLE = _confusable_table()
+
+
+def extension_parameters(recording, structure, base_values: dict) -> dict:
+    """Initial values and bounds of the parameters ``structure.extension`` adds (none without one)."""
+    if structure.extension is None:
+        return {}
+    return effect(structure.extension).parameters(recording, structure, base_values)
+
+
+def applicable_effects(recording, structure) -> list[str]:
+    """Vocabulary effects that can show in this recording under this base structure, in registry order."""
+    return [e.name for e in _REGISTERED if e.applies(recording, structure)]
+
+
+def effect_starts(model, name: str, base_values: dict) -> list[dict]:
+    """Starts of the local fit of effect ``name``: the base values with its parameters at their
+    initial values, moved by the effect's own start rule."""
+    start = {**base_values, **{n: model.parameters[n].value for n in effect(name).parameter_names}}
+    return effect(name).starts(model, start)
+
+
+def static_map_slopes(name, values, channels, points: int = 201):
+    """``[(what, slope over the normalized input -1..1)]`` of a static map (an ``input_map``, relative to
+    the small-signal gain, or each channel's ``sensor_map``); empty for an effect that is no static map."""
+    slopes = effect(name).slopes
+    return [] if slopes is None else slopes(values, channels, np.linspace(-1.0, 1.0, points))

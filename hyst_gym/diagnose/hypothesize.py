@@ -1,0 +1,377 @@
+"""Stages 1 and 3: calibrate the base model, then fit it extended by each candidate effect.
+
+How each effect is fitted is its ``strategy`` in the registry (:mod:`.effects`), one of
+:data:`STRATEGIES`; its starts and rescue are registry fields too. Every fit reads the
+:class:`~.fit.Split` (noise levels, fitting block, field step) and never the held-out block,
+except :func:`cross_start` and :func:`guard_base`, which score candidates there.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
+
+import numpy as np
+
+from .decide import ACCEPT_DELTA_BIC, ACCEPT_IMPROVEMENT
+from .effects import EFFECT_PARAMETERS, effect as registered, effect_starts
+from .fit import BASE_FIT_TOLERANCE, FitResult, Objective, Split, _solve_linear_outputs, global_search
+from .model import Model, Structure, base_parameters, extension_parameters, slope_factor
+from .recording import Recording
+
+HYSTERESIS_NAMES = ["a", "k", "rho", "Ms", "c"]
+#: A candidate whose fit from the base model's values still misses the fitting block by more than
+#: this many noise units (RMS) is searched again from scratch (:func:`rescue`).
+RESCUE_RMSE = 3.0
+#: The mains frequencies tried (Hz); each gets its own fit and the lower fitting-block SSE wins.
+MAINS_FREQUENCIES = (50.0, 60.0)
+
+
+def in_threads(function, items, workers: int) -> list:
+    """``[function(item) for item in items]``, run in up to ``workers`` threads, in the items' order.
+
+    Why threads suffice: the fits spend nearly all their time in compiled simulations that release
+    the GIL (kernels.py), and each call here is independent of the others, so the results do not
+    depend on the thread count or the order of completion."""
+    items = list(items)
+    if workers <= 1 or len(items) <= 1:
+        return [function(item) for item in items]
+    with ThreadPoolExecutor(max_workers=min(workers, len(items))) as pool:
+        return list(pool.map(function, items))
+
+
+def _first_best(results):
+    """The result of lowest SSE, the first of equals (as a sequential loop with ``<`` keeps it)."""
+    best = None
+    for result in results:
+        if best is None or result.sse < best.sse:
+            best = result
+    return best
+
+
+# ---------------------------------------------------------------------------- stage 1: the base model
+
+
+def calibrate(split: Split, structure: Structure, n_points=128, keep=2, progress=None,
+              workers: int = 1) -> FitResult:
+    """Stage 1: global Sobol search over the hysteresis parameters (transducer gain and bias
+    solved linearly), then local least squares of everything from the ``keep`` best starts (in
+    up to ``workers`` threads)."""
+    recording = split.recording
+    model = Model(recording, structure, base_parameters(recording, structure), split.max_field_step)
+    pair = _linear_pair(model)
+    names = [n for n in HYSTERESIS_NAMES if model.parameters[n].free]
+    informed = loop_informed_starts(recording)
+    both = "magnetization" in model.channels and "displacement" in model.channels
+    if both:
+        # Fit the hysteresis to the magnetization channel first, so that a displacement channel the
+        # base transducer cannot follow does not drag the hysteresis parameters; then fit jointly.
+        magnetic_only = Model(recording, structure, model.parameters, split.max_field_step)
+        magnetic_only.channels = ("magnetization",)
+        searched = global_search(magnetic_only, split.noise, split.fit_mask, names, n_points=n_points, keep=keep,
+                                 extra_starts=informed)
+        magnetic_fits = in_threads(lambda start: split.fit(magnetic_only, start, max_nfev=60), searched, workers)
+        magnetic_best = _first_best(magnetic_fits)
+        starts = []
+        for magnetic in magnetic_fits:
+            fitted = magnetic.values
+            m = model.magnetization([fitted])[:, 0]
+            starts.append(_solve_linear_outputs(model, fitted, m, split.noise, split.fit_mask, pair)
+                          if pair else fitted)
+    else:
+        starts = global_search(model, split.noise, split.fit_mask, names, n_points=n_points, keep=keep,
+                               linear_outputs=pair, extra_starts=informed)
+    results = in_threads(lambda start: split.fit(model, start, max_nfev=80, tolerance=BASE_FIT_TOLERANCE),
+                         starts, workers)
+    best = _first_best(results)
+    if progress is not None:
+        progress.update(len(results))
+    if both:
+        best.magnetic_values = {n: magnetic_best.values[n] for n in HYSTERESIS_NAMES}
+    return best
+
+
+def loop_informed_starts(recording: Recording) -> list:
+    """Starts read off a recorded B-H loop, scored with the Sobol design: Ms just above the peak
+    |M|, k near the coercive field, a from the field at which the rising branch reaches Ms/2
+    (tanh(He/a) = 1/2 at He = 0.55 a). A saturated, square loop puts the truth in a corner of
+    the log-uniform design (Ms within a few per cent of the peak M) that 128 points rarely hit."""
+    if recording.magnetization is None:
+        return []
+    field, m = recording.field, recording.magnetization
+    peak = float(np.max(np.abs(m))) or 1.0
+    rising = np.diff(field) > 0
+    crossings = np.flatnonzero(np.sign(m[1:]) != np.sign(m[:-1]))
+    coercive = [abs(field[i]) for i in crossings]
+    half = [field[i] for i in np.flatnonzero((m[:-1] < 0.5 * peak) & (m[1:] >= 0.5 * peak)) if rising[i]]
+    if not coercive or not half:
+        return []
+    hc = float(np.median(coercive))
+    a = max((float(np.median(half)) - hc) / 0.55, 1e-3 * float(np.max(np.abs(field))))
+    return [{"Ms": 1.05 * peak, "k": max(hc, 1e-9), "a": a * scale, "rho": 0.0, "c": c}
+            for scale in (0.5, 1.0, 2.0) for c in (0.05, 0.3)]
+
+
+def _linear_pair(model):
+    if "displacement" not in model.channels:
+        return ()
+    gain = next((g for g in ("zetahat", "nu", "zeta2", "zeta_fem") if g in model.parameters), None)
+    return (gain, "M0") if gain and model.structure.transducer != "lumped_nonlinear" else ()
+
+
+# ---------------------------------------------------------------------------- stage 3: the candidates
+# Each strategy: (split, base fit, effect, model) -> (model to fit, starts).
+
+
+def _local_starts(split, base, effect, model):
+    return model, effect_starts(model, effect.name, base.values)
+
+
+def _other_curve_starts(split, base, effect, model):
+    """The other anhysteretic curve: from the same initial slope Ms*slope/a, and a fresh search."""
+    start = dict(base.values)
+    ratio = slope_factor(model.structure.curve) / slope_factor(model.structure.anhysteretic)
+    start["a"] = base.values["a"] * ratio
+    model = model.with_values(start)
+    names = [n for n in HYSTERESIS_NAMES if model.parameters[n].free]
+    return model, [start] + global_search(model, split.noise, split.fit_mask, names, n_points=64, keep=2,
+                                          linear_outputs=_linear_pair(model))
+
+
+def _with_hysteresis_starts(split, base, effect, model):
+    """The effect's parameters trade off against the hysteresis (chi_r against c and k: both add
+    low-field slope), so the base fit is a poor start: search both together, as for the base fit."""
+    names = [n for n in HYSTERESIS_NAMES if model.parameters[n].free] + list(effect.parameter_names)
+    return model, effect_starts(model, effect.name, base.values) + global_search(
+        model, split.noise, split.fit_mask, names, n_points=128, keep=3, linear_outputs=_linear_pair(model))
+
+
+def _quadratic_output_starts(split, base, effect, model):
+    """The M and M^2 gains solved linearly, from the base fit's mechanics and from the initial (paper)
+    ones: a base fit that the missing M^2 law has dragged far off is a poor place to start."""
+    base_values = base.values
+    if "zetahat" not in base_values:
+        return _local_starts(split, base, effect, model)
+    recording, structure = split.recording, model.structure
+    paper = {n: p.value for n, p in base_parameters(recording, structure).items() if n in ("khat", "chat")}
+    starts = [_quadratic_start(model, base_values, split.fit_mask),
+              _quadratic_start(model, {**base_values, **paper}, split.fit_mask)]
+    if base.magnetic_values:
+        starts.append(_quadratic_start(model, {**base_values, **paper, **base.magnetic_values}, split.fit_mask))
+    width = max(abs(v["zeta_q"]) for v in starts)
+    zeta_q = model.parameters["zeta_q"]
+    widened = replace(zeta_q, lower=-100 * width - abs(zeta_q.upper), upper=100 * width + abs(zeta_q.upper),
+                      scale=max(width, zeta_q.scale))
+    return Model(recording, structure, {**model.parameters, "zeta_q": widened}, split.max_field_step), starts
+
+
+def _linear_sensor_starts(split, base, effect, model):
+    starts = effect_starts(model, effect.name, base.values)
+    return model, starts + [_linear_sensor_start(model, effect, starts[0], split.fit_mask)]
+
+
+def _mains_starts(split, base, effect, model):
+    return model, mains_starts(model, effect_starts(model, effect.name, base.values)[0], split.noise,
+                               split.fit_mask, effect)
+
+
+#: How the hypothesize stage fits an effect (its ``strategy`` in the registry).
+STRATEGIES = {"local": _local_starts, "other_curve": _other_curve_starts,
+              "with_hysteresis": _with_hysteresis_starts, "quadratic_outputs": _quadratic_output_starts,
+              "linear_sensor": _linear_sensor_starts, "mains": _mains_starts}
+
+
+def fit_candidate(split: Split, base: FitResult, name: str) -> FitResult:
+    """Stage 3: fit the base model extended by effect ``name``, starting from the base fit."""
+    effect = registered(name)
+    structure = Structure(base.model.structure.transducer, base.model.structure.anhysteretic, name,
+                          base.model.structure.fit_mechanics)
+    params = dict(base.model.parameters)
+    params.update(extension_parameters(split.recording, structure, base.values))
+    model = Model(split.recording, structure, params, split.max_field_step)
+    model, starts = STRATEGIES[effect.strategy](split, base, effect, model)
+    best = None
+    for start in starts:
+        result = split.fit(model, start, max_nfev=40)
+        if best is None or result.sse < best.sse:
+            best = result
+    if effect.rescue is not None and np.sqrt(best.sse / best.n_residuals) > RESCUE_RMSE:
+        best = rescue(model, effect, best, split)
+    return best
+
+
+def rescue(model, effect, local, split: Split):
+    """Search the hysteresis parameters and the effect's own (its ``rescue`` in the registry) again
+    from scratch, for a candidate whose local fit from the base model's values misses by far.
+
+    Why: when a strong effect is missing, the base fit bends its hysteresis parameters to absorb
+    it (a coercive field of 50 A/m instead of 1200, say), and a local fit of the extension from
+    there stays in that basin, so the true effect would look no better than the others. The
+    displacement's linear gains are solved for each design point (for the M^2 law, both gains).
+    Parameters outside the design keep the local fit's values."""
+    model = model.with_values(local.values)
+    names = [n for n in HYSTERESIS_NAMES if model.parameters[n].free]
+    names += [n for n in effect.rescue if n in model.parameters and model.parameters[n].free]
+    solver = None
+    if effect.strategy == "quadratic_outputs" and "zetahat" in model.parameters:
+        def solver(values, magnetization):
+            return _quadratic_outputs(model, values, magnetization, split.fit_mask)
+    starts = global_search(model, split.noise, split.fit_mask, names, n_points=64, keep=2,
+                           linear_outputs=_linear_pair(model) if solver is None else (), output_solver=solver)
+    best = local
+    objective = Objective(model, split.noise, split.fit_mask)
+    for start in starts:
+        start_sse = float(np.sum(objective.residual_of(model.predict(start)) ** 2))
+        # a design point where the simulation blows up (non-finite) or that starts no better than
+        # the local fit cannot help; trust-region steps from a non-finite Jacobian would fail
+        if not np.isfinite(start_sse) or start_sse >= local.sse:
+            continue
+        result = split.fit(model, start, max_nfev=40)
+        if result.sse < best.sse:
+            best = result
+    return best
+
+
+def _quadratic_start(model, base_values, fit_mask):
+    """:func:`_quadratic_outputs` at the magnetization of ``base_values``."""
+    m = model.magnetization([base_values])[:, 0]
+    return _quadratic_outputs(model, base_values, m, fit_mask)
+
+
+def _quadratic_outputs(model, base_values, m, fit_mask):
+    """Linear least squares of the displacement on the responses to M, M^2 and 1 (the forcing
+    c1*M + c2*M^2 + c0 = zetahat*(M - M0) + zeta_q*(M - M0)^2), mapped to (zetahat, zeta_q, M0)."""
+    unit = dict(base_values, zetahat=1.0, zeta_q=0.0, M0=0.0)
+    responses = []
+    for signal in (m, m ** 2, np.ones_like(m)):
+        responses.append(model.displacement(unit, signal)[fit_mask])
+    design = np.column_stack(responses)
+    if not np.all(np.isfinite(design)):
+        return dict(base_values)  # mechanics unstable at these values: nothing to solve
+    (c1, c2, c0), *_ = np.linalg.lstsq(design, model.recording.displacement[fit_mask], rcond=None)
+    center = float(np.median(m))
+    roots = np.roots([c2, c1, c0]) if c2 != 0 else np.array([-c0 / c1])
+    real = roots[np.abs(roots.imag) < 1e-9 * (np.abs(roots) + 1)].real
+    M0 = float(real[np.argmin(np.abs(real - center))]) if real.size else center
+    return dict(base_values, zeta_q=float(c2), zetahat=float(c1 + 2 * c2 * M0), M0=M0)
+
+
+def _linear_sensor_start(model, effect, start, fit_mask):
+    """A start for an output-side extension with its coefficients (its ``channel_terms``) solved by
+    linear least squares against the base model's prediction (each term is linear in its coefficient
+    given the true output), one channel at a time; clipped to the coefficients' bounds."""
+    out = dict(start)
+    magnetization = model.magnetization([start])[:, 0]  # the terms act after it: simulate once
+    predicted = model.predict(start, magnetization)
+    for channel in model.channels:
+        coefficients = effect.channel_terms[channel]
+        if not all(model.parameters[n].free for n in coefficients):
+            continue
+        columns = []
+        for name in coefficients:  # the response to a unit coefficient
+            columns.append(model.predict(dict(start, **{name: 1.0}), magnetization)[channel] - predicted[channel])
+        design = np.column_stack(columns)[fit_mask]
+        target = (model.recording.output(channel) - predicted[channel])[fit_mask]
+        if not np.all(np.isfinite(design)):
+            continue
+        solution, *_ = np.linalg.lstsq(design, target, rcond=None)
+        for name, value in zip(coefficients, solution):
+            p = model.parameters[name]
+            out[name] = float(np.clip(value, p.lower, p.upper))
+    return out
+
+
+def mains_starts(model, start, noise, fit_mask, effect=None) -> list:
+    """Starts of the mains-pickup fit, one per frequency of :data:`MAINS_FREQUENCIES`, each with the
+    pickup's coefficients solved by linear least squares on the fitting block; best first (fitting-block
+    SSE of the start).
+
+    Why one fit per frequency rather than a choice from the base residual: on a short record (a few
+    cycles) 50 and 60 Hz are far from orthogonal to the slow misfit that the base model leaves
+    where it bent to absorb the pickup, so the residual's projection can pick the wrong one; a fit at
+    each frequency compares them with the hysteresis free. Only the fitting block is read."""
+    effect = registered(model.structure.extension) if effect is None else effect
+    scored = []
+    for hz in MAINS_FREQUENCIES:
+        candidate = _linear_sensor_start(model, effect, dict(start, mains_hz=hz), fit_mask)
+        predicted = model.predict(candidate)
+        sse = sum(float(np.sum(((predicted[ch] - model.recording.output(ch))[fit_mask]) ** 2))
+                  / noise[ch] ** 2 for ch in model.channels)
+        scored.append((sse, hz, candidate))
+    return [candidate for _, _, candidate in sorted(scored, key=lambda t: t[0])]
+
+
+# ---------------------------------------------------------------------------- scoring against the base
+
+
+def cross_start(candidates, base_heldout, split: Split, limit: int = 5, workers: int = 1):
+    """Refit the runners-up from the best candidate's shared parameters (hysteresis, mechanics, gains).
+
+    Why: an extension that the base fit's basin does not suit (a strong M^2 law, say) can end far from
+    its own optimum, and then another extension that mimics it wins by optimization alone. Started
+    from where the winner put the shared parameters (its displacement gains solved again there), such a
+    candidate reaches its own optimum; the
+    decision then compares the two as they are (a tie gives ``ambiguous``). Only when the best
+    candidate lowers the base model's held-out RMSE by ``ACCEPT_IMPROVEMENT`` (else nothing is named
+    anyway); at most ``limit`` runners-up, best held-out first, those whose fitting-block SSE is above
+    the winner's by more than 5 %; a refit is kept only if it lowers its SSE."""
+    if len(candidates) < 2:
+        return
+    ranked = sorted(candidates, key=lambda c: c.heldout_rmse)
+    best = ranked[0]
+    if best.heldout_rmse > (1.0 - ACCEPT_IMPROVEMENT) * base_heldout:
+        return
+    shared = {n: v for n, v in best.fit.values.items() if n not in EFFECT_PARAMETERS[best.effect]}
+    # a and the slope mean different things under the two curves: no cross start to or from the other curve
+    chosen = [c for c in [c for c in ranked[1:] if c.fit.sse > 1.05 * best.fit.sse][:limit]
+              if not registered(best.effect).swaps_curve and not registered(c.effect).swaps_curve]
+
+    def refitted(candidate):
+        model = candidate.fit.model
+        start = {**candidate.fit.values, **{n: v for n, v in shared.items() if n in model.parameters}}
+        start = _resolve_outputs(model, candidate.effect, start, split)
+        return split.fit(model, start, max_nfev=40)
+
+    for candidate, refit in zip(chosen, in_threads(refitted, chosen, workers)):
+        model = candidate.fit.model
+        if refit.sse < candidate.fit.sse:
+            candidate.fit = refit
+            candidate.heldout_rmse, _, candidate.heldout_residual = split.heldout(model, refit.values)
+            candidate.bic = refit.bic
+
+
+def _resolve_outputs(model, name, values, split: Split):
+    """``values`` with the displacement's output parameters solved again at its hysteresis and mechanics:
+    the M and M^2 gains and the bias for the M^2 law, the gain and the bias otherwise."""
+    if "displacement" not in model.channels:
+        return values
+    if registered(name).strategy == "quadratic_outputs" and "zetahat" in values:
+        return _quadratic_start(model, values, split.fit_mask)
+    pair = _linear_pair(model)
+    if not pair:
+        return values
+    return _solve_linear_outputs(model, values, model.magnetization([values])[:, 0], split.noise, split.fit_mask,
+                                 pair)
+
+
+def score(candidates, base, base_heldout):
+    """Each candidate's held-out improvement on the base, and whether it is accepted (module :mod:`.decide`)."""
+    for c in candidates:
+        c.improvement = 1.0 - c.heldout_rmse / base_heldout
+        c.accepted = c.improvement >= ACCEPT_IMPROVEMENT and c.bic - base.bic < -ACCEPT_DELTA_BIC
+
+
+def guard_base(base, candidates, split: Split):
+    """Guard against an under-converged base: refit the base from the best accepted candidate's
+    shared parameters; if that alone closes the gap, the 'effect' was an optimization artefact."""
+    base_heldout = split.heldout(base.model, base.values)[0]
+    score(candidates, base, base_heldout)
+    accepted = sorted([c for c in candidates if c.accepted], key=lambda c: -c.improvement)
+    if accepted and not registered(accepted[0].effect).swaps_curve:
+        start = {n: v for n, v in accepted[0].fit.values.items() if n in base.values}
+        refit = split.fit(base.model, start, max_nfev=60, tolerance=BASE_FIT_TOLERANCE)
+        if refit.sse < base.sse:
+            base = refit
+            base_heldout = split.heldout(base.model, base.values)[0]
+            score(candidates, base, base_heldout)
+    return base, base_heldout

@@ -1,0 +1,183 @@
+"""The five stages of the mismatch tool: calibrate, locate, hypothesize, decide, report.
+
+``diagnose(recording_or_path, model="lumped", ...)`` returns a :class:`~.results.Report`.
+
+The recording is split in time (:class:`~.fit.Split`): the first ``1 - holdout`` of the samples
+fit every model, the last ``holdout`` (a contiguous block) is only predicted. Errors are in noise
+units (each channel's residual divided by its noise level, estimated from second differences), so
+a model that explains the data to within noise has a held-out RMSE near 1. The decision rule, the
+plausibility checks and the meaning of ``confidence`` are in :mod:`.decide`.
+"""
+
+from __future__ import annotations
+
+import os
+import time as _time
+from concurrent.futures import ThreadPoolExecutor
+
+from threadpoolctl import threadpool_limits
+from tqdm.auto import tqdm
+
+from . import locate
+from .continuum import CONTINUUM_POWER_SHARE, resonance_power_share, try_continuum
+from .decide import EXPLAINED_RMSE, MATERIAL_SHARE, check_plausibility, decide
+from .effects import RATE_EFFECTS, applicable_effects
+from .fit import Split
+from .hypothesize import calibrate, cross_start, fit_candidate, guard_base
+from .identifiability import describe_direction, invisible_effects, unidentified_directions
+from .model import MECHANICS_TOLERANCE, Structure
+from .priors import pinned_priors, prior_notes, release_prior
+from .recording import Recording, read_recording
+from .report import explain
+from .results import Candidate, Report
+
+#: Default number of threads that fit candidates at once: the cores, at most 4 (each thread runs
+#: compiled simulations that release the GIL; beyond the cores, threads only compete).
+DEFAULT_WORKERS = max(1, min(4, os.cpu_count() or 1))
+
+
+def diagnose(recording, model: str = "lumped", anhysteretic: str = "ising", fit_mechanics: bool = True,
+             holdout: float = 0.3, effects=None, progress: bool = True, locate_windows: int = 4,
+             mechanics_tolerance: float = MECHANICS_TOLERANCE, workers: int | None = None) -> Report:
+    """Run the five stages on a recording (a :class:`Recording` or a CSV path).
+
+    Parameters
+    ----------
+    model : {"first_order", "lumped", "lumped_nonlinear", "fem"}
+        Base transducer for a displacement channel (ignored for magnetization-only data).
+    anhysteretic : {"ising", "langevin"}
+        Base anhysteretic curve (2)/(3).
+    fit_mechanics : bool
+        Fit the lumped coefficients chat, khat (True) or fix them at the paper's values (13).
+    holdout : float
+        Fraction of the recording, at its end, held out for the decision.
+    effects : list of str, optional
+        Restrict the candidates (default: every applicable vocabulary effect).
+    mechanics_tolerance : float
+        Factor (>= 1) within which the fit keeps khat and chat of their nominal values.
+    workers : int, optional
+        Threads that fit candidate extensions at once (default :data:`DEFAULT_WORKERS`). The
+        report does not depend on it: each candidate's fit is the same in any thread and order.
+    """
+    workers = DEFAULT_WORKERS if workers is None else workers
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    # Small dense linear algebra (4x4 matrix exponentials, SVDs of tall Jacobians) runs slower
+    # with BLAS threads than without: one 8000-sample diagnosis took 61 s with them and 8.4 s
+    # without on a loaded 2-core machine.
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, progress,
+                         locate_windows, mechanics_tolerance, workers)
+
+
+def _effects_to_try(recording, structure, effects):
+    """Candidate effects, and the vocabulary effects left out with the reason why."""
+    skipped = {e: "this channel set cannot show it" for e in invisible_effects(recording.channels)}
+    if effects is not None:
+        return list(effects), skipped
+    chosen = applicable_effects(recording, structure)
+    if recording.metadata.get("time_axis") == "synthetic":
+        # quasi-static loops on a made-up time axis: a rate, a delay or a resonance has no meaning
+        for effect in RATE_EFFECTS:
+            if effect in chosen:
+                chosen.remove(effect)
+                skipped[effect] = "the time axis is synthetic (sidecar time_axis), so it carries no rate"
+    return chosen, skipped
+
+
+def _candidates(split, base, names, bar, workers):
+    """Stage 3: every candidate fitted and held out, then the runners-up refitted from the best."""
+    def fitted(name):
+        return Candidate.fitted(name, fit_candidate(split, base, name), split)
+
+    candidates = []
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        for candidate in pool.map(fitted, names):  # results in the vocabulary's order
+            candidates.append(candidate)
+            bar.update(1)
+    cross_start(candidates, split.heldout(base.model, base.values)[0], split, workers=workers)
+    return candidates
+
+
+def _check_candidates(split, base, base_heldout, candidates):
+    """Plausibility of the accepted candidates, and the base's pinned priors released. Returns the
+    prior record, the released fit (None unless a prior is pinned) and whether the mechanics bind."""
+    for candidate in candidates:
+        if candidate.accepted:
+            candidate.plausibility = check_plausibility(candidate, split.noise)
+    pinned = pinned_priors(base)
+    release, released = ({}, None) if not pinned else release_prior(base, pinned, split, base_heldout)
+    mechanics_pinned = bool(release.get("binds"))
+    if mechanics_pinned:
+        # a candidate that frees the mechanics is evidence too (decide.freeing_candidates)
+        for candidate in candidates:
+            candidate.mechanics_pinned = bool(pinned_priors(candidate.fit))
+            if not candidate.accepted and not candidate.mechanics_pinned and candidate.heldout_rmse <= EXPLAINED_RMSE:
+                candidate.plausibility = check_plausibility(candidate, split.noise)
+    return release, released, mechanics_pinned
+
+
+def _structure_left(split, base, located):
+    """The structured part of the base model's held-out residual, and that residual."""
+    base_residual = split.heldout(base.model, base.values)[2]
+    structure_left = locate.structured_power(base_residual)
+    structure_left.update(material_share=MATERIAL_SHARE, material=bool(structure_left["share"] >= MATERIAL_SHARE),
+                          where=located["summary"])
+    return structure_left, base_residual
+
+
+def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, progress, locate_windows,
+              mechanics_tolerance, workers=1) -> Report:
+    started = _time.perf_counter()
+    if not isinstance(recording, Recording):
+        recording = read_recording(recording)
+    if not (0.05 <= holdout <= 0.5):
+        raise ValueError(f"holdout must be in [0.05, 0.5], got {holdout!r}")
+    transducer = model if "displacement" in recording.channels else "none"
+    structure = Structure(transducer, anhysteretic, None, fit_mechanics, mechanics_tolerance)
+    split = Split.of(recording, holdout)
+    candidates_to_try, skipped = _effects_to_try(recording, structure, effects)
+    bar = tqdm(total=2 + len(candidates_to_try) + 1, desc="diagnose", disable=not progress, leave=False)
+
+    bar.set_postfix_str("calibrate")
+    base = calibrate(split, structure, progress=bar, workers=workers)
+    bar.set_postfix_str("locate")
+    located = locate.locate_mismatch(base, split.noise, windows=locate_windows)
+    bar.set_postfix_str("candidates")
+    candidates = _candidates(split, base, candidates_to_try, bar, workers)
+
+    bar.set_postfix_str("decide")
+    base, base_heldout = guard_base(base, candidates, split)
+    release, released, mechanics_pinned = _check_candidates(split, base, base_heldout, candidates)
+    notes_on_priors = prior_notes(base, release)
+    structure_left, base_residual = _structure_left(split, base, located)
+    decision = decide(candidates, base_heldout, recording.channels, mechanics_pinned=mechanics_pinned,
+                      base_structure=structure_left, base_residual=base_residual)
+    continuum = {}
+    if decision.verdict == "unexplained" and structure.transducer == "lumped" and "displacement" in recording.channels:
+        share = resonance_power_share(base, split.noise)
+        if share >= CONTINUUM_POWER_SHARE:
+            bar.set_postfix_str("continuum")
+            decision, continuum = try_continuum(split, base, released if mechanics_pinned else None, decision,
+                                                base_heldout, share, workers)
+    directions = unidentified_directions(base, split.noise, split.fit_mask)
+    if directions:
+        notes_on_priors.append("the record does not determine " + "; ".join(
+            f"{describe_direction(d)}: to identify it, {d['measurement']}" for d in directions))
+    bar.update(1)
+    bar.close()
+
+    heldout_by_channel = {"baseline": split.heldout(base.model, base.values)[1]}
+    chosen = decision.chosen
+    if chosen is not None:
+        heldout_by_channel["verdict"] = split.heldout(chosen.fit.model, chosen.fit.values)[1]
+    report = Report(source=recording.source, verdict=decision.verdict, confidence=decision.confidence,
+                    explanation="", baseline=base, baseline_heldout=base_heldout, candidates=candidates,
+                    located=located, improvement=float(chosen.improvement) if chosen else 0.0, structure=structure,
+                    split_index=split.cut, noise=split.noise, seconds=0.0, chosen=chosen,
+                    heldout_by_channel=heldout_by_channel, tied=decision.tied, advice=decision.advice,
+                    notes=decision.notes + notes_on_priors, skipped=skipped, material_structure=structure_left,
+                    identifiability={"priors": release, "unidentified": directions}, continuum=continuum)
+    report.explanation = explain(report)
+    report.seconds = _time.perf_counter() - started
+    return report

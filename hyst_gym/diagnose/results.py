@@ -1,0 +1,107 @@
+"""What a diagnosis produces: the fitted candidates and the report."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field as dataclass_field
+
+import numpy as np
+
+from .decide import Plausibility
+from .effects import EFFECT_SLOTS
+from .fit import FitResult, Split
+from .identifiability import channel_set
+from .model import Structure
+from .report import physical_params
+
+
+@dataclass
+class Candidate:
+    effect: str
+    fit: FitResult
+    heldout_rmse: float
+    bic: float
+    improvement: float
+    accepted: bool
+    plausibility: Plausibility = dataclass_field(default_factory=Plausibility)
+    #: normalized residual on the held-out block (channels concatenated), for the tie test
+    heldout_residual: np.ndarray | None = dataclass_field(default=None, repr=False)
+    #: its mechanics ran into their prior (like the base model's, :func:`_pinned_priors`)
+    mechanics_pinned: bool = False
+
+    @classmethod
+    def fitted(cls, effect: str, fit: FitResult, split: Split) -> "Candidate":
+        """A candidate for ``fit`` of ``effect``, with its held-out error; not yet scored against the base
+        (improvement 0, not accepted)."""
+        heldout, _, residual = split.heldout(fit.model, fit.values)
+        return cls(effect, fit, heldout, fit.bic, improvement=0.0, accepted=False, heldout_residual=residual)
+
+    def to_json(self) -> dict:
+        return {"effect": self.effect, "heldout_rmse": self.heldout_rmse, "bic": self.bic,
+                "delta_bic": None, "improvement": self.improvement, "accepted": self.accepted,
+                "plausible": self.plausibility.plausible, "implausible_because": self.plausibility.reasons,
+                "block_values": self.plausibility.block_values,
+                "params": physical_params(self.fit), "uncertainties": self.fit.uncertainties}
+
+
+@dataclass
+class Report:
+    """What the tool found. ``to_json()`` gives the machine-readable report (issue 6)."""
+
+    source: str
+    verdict: str
+    confidence: float
+    explanation: str
+    baseline: FitResult
+    baseline_heldout: float
+    candidates: list
+    located: dict
+    improvement: float
+    structure: Structure
+    split_index: int
+    noise: dict
+    seconds: float
+    chosen: Candidate | None = None
+    heldout_by_channel: dict = dataclass_field(default_factory=dict)
+    tied: list = dataclass_field(default_factory=list)
+    advice: str = ""
+    notes: list = dataclass_field(default_factory=list)
+    skipped: dict = dataclass_field(default_factory=dict)
+    #: structured part of the base model's held-out residual (:func:`.locate.structured_power`)
+    material_structure: dict = dataclass_field(default_factory=dict)
+    #: pinned priors and whether they bind; directions the record leaves open
+    identifiability: dict = dataclass_field(default_factory=dict)
+    #: continuum mechanics tried when the residual lives near or above the first resonance (:func:`try_continuum`)
+    continuum: dict = dataclass_field(default_factory=dict)
+
+    @property
+    def slot(self) -> str | None:
+        """The slot of the model chain the verdict fills, in an engineer's words (None unless an effect)."""
+        return EFFECT_SLOTS.get(self.verdict)
+
+    def to_json(self) -> dict:
+        items = []
+        for c in self.candidates:
+            item = c.to_json()
+            item["delta_bic"] = c.bic - self.baseline.bic
+            items.append(item)
+        return {
+            "source": self.source, "verdict": self.verdict, "slot": self.slot,
+            "slots_tied": [EFFECT_SLOTS[c.effect] for c in self.tied] if self.verdict == "ambiguous" else [],
+            "confidence": self.confidence,
+            "confidence_means": "margin of the verdict over its nearest alternative, as a share of the held-out "
+                                "reduction (0-1; not a probability: see the reliability table in the README)",
+            "channel_set": channel_set(self.baseline.model.recording.channels),
+            "candidates_tied": [c.effect for c in self.tied] if self.verdict == "ambiguous" else [],
+            "separating_measurement": self.advice, "notes": self.notes, "effects_not_tried": self.skipped,
+            "explanation": self.explanation,
+            "baseline": {"model": self.structure.transducer, "anhysteretic": self.structure.anhysteretic,
+                         "heldout_rmse": self.baseline_heldout, "bic": self.baseline.bic,
+                         "params": physical_params(self.baseline),
+                         "uncertainties": self.baseline.uncertainties},
+            "candidates": items, "located": self.located, "improvement": self.improvement,
+            "heldout_rmse_units": "noise units (residual / channel noise level); 1 = explained to within noise",
+            "heldout_rmse_by_channel": self.heldout_by_channel, "noise_level": self.noise,
+            "split": {"fit_samples": self.split_index, "heldout_from_time_s": None},
+            "material_structure": self.material_structure, "identifiability": self.identifiability,
+            "continuum": self.continuum, "seconds": self.seconds,
+        }
