@@ -217,3 +217,21 @@ def test_protocol_check_flags_a_short_record_and_a_remanent_start(tmp_path):
     assert sum("+10 °C" in n and "300 samples" in n for n in notes) == 3
     assert any(n.startswith("-15 °C minor: start_share") for n in notes)
     assert not any(n.startswith("-30 °C") or n.startswith("-5 °C") for n in notes)
+
+
+def test_sampling_check_compares_the_records_of_the_common_length(tmp_path):
+    payload = {"temperatures_C": np.array([-30.0, -15.0, 10.0])}
+    for T in payload["temperatures_C"]:
+        for amp, peak in (("major", 5.5e4), ("mid", 1e4), ("minor", 400.0)):
+            n = 400 if T == 10.0 else 800
+            payload[f"{gd.tag_for(T)}_{amp}_H"] = peak * np.sin(2 * np.pi * np.linspace(0, 1.25, n))
+            payload[f"{gd.tag_for(T)}_{amp}_B"] = synthetic_record(T, amp, peak, n).B
+    np.savez(tmp_path / "p.npz", **payload)
+    family = gd.FAMILIES["critical"]
+    study = {"protocol": gd.record_protocol(tmp_path / "p.npz"),
+             "fits": [{"family": "critical", "protocol": "all", "params": dict(zip(family.names, [
+                 TRUE[n] for n in family.names]))}]}
+    change = gd.sampling_check(study, tmp_path / "p.npz", 2, "critical")
+    assert set(change) == set(gd.AMPLITUDES)
+    # the true law on its own (noise-free B) records: half the samples move the score by a small amount only
+    assert all(0.0 <= v < 0.005 for v in change.values()), change
