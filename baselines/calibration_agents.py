@@ -1,4 +1,4 @@
-"""Agents of suite v2's calibration tasks (``hyst_gym.envs.suite_v2``): a field design plus the
+"""Agents of suite v2's calibration tasks (:mod:`hyst_gym.envs.suite_v2`): a field design plus the
 Bayes estimate of a from a grid posterior over the start temperature.
 
 In most calibration tasks the only unknown is the start temperature T0 (the ambient equals it and
@@ -44,7 +44,7 @@ K_TASK_NODES = (24, 9)
 class PosteriorCalibration(Agent):
     """``field_agent``'s field, and the grid-posterior estimate of a (module doc).
 
-    ``task_id``: a calibration task of :data:`hyst_gym.envs.suite_v2.TASKS_V2`; ``nodes``: grid
+    ``task_id``: a calibration task of :data:`hyst_gym.envs.tasks.TASKS`; ``nodes``: grid
     nodes over the task's start temperatures (K), default :data:`POSTERIOR_NODES` (the first of
     :data:`K_TASK_NODES` on a task with a k prior); ``k_nodes``: grid nodes over k (A/m), 1 (the preset's
     k, assumed known) or >= 3 (over the task's k prior), default 1 without a k prior and the second of
@@ -53,11 +53,12 @@ class PosteriorCalibration(Agent):
     def __init__(self, field_agent: Agent, task_id: str, nodes: int | None = None, name: str | None = None,
                  k_nodes: int | None = None):
         super().__init__()
-        from hyst_gym.envs.suite_v2 import TASKS_V2, task_config_v2
+        from hyst_gym.envs.tasks import TASKS
 
-        if TASKS_V2.get(task_id, {}).get("kind") != "calibrate":
+        spec = TASKS.get(task_id)
+        if spec is None or not spec.calibrates:
             raise ValueError(f"PosteriorCalibration needs a calibration task, got {task_id!r}")
-        k_prior = TASKS_V2[task_id]["k_prior"]
+        k_prior = spec.k_prior
         if nodes is None:
             nodes = POSTERIOR_NODES if k_prior is None else K_TASK_NODES[0]
         if k_nodes is None:
@@ -66,12 +67,12 @@ class PosteriorCalibration(Agent):
                 or (k_nodes > 1 and k_prior is None):
             raise ValueError(f"k_nodes must be 1 or (on a task with a k prior) an integer >= 3, got {k_nodes!r}")
         self.field_agent = field_agent
-        self.config = task_config_v2(task_id)
+        self.config = spec.env_config()
         self.nodes = int(nodes)
         self.k_nodes = int(k_nodes)
         self.node_k = np.array([self.config.hysteresis.k]) if k_nodes == 1 else k_prior.nodes(self.k_nodes)
         self.name = name or f"{field_agent.name}+posterior"
-        hidden = TASKS_V2[task_id]["sensors"] or ()
+        hidden = spec.sensors_hidden
         outputs = ["displacement", "velocity"] if self.config.is_mechanical else ["output"]
         self.channels = [i for i, name in enumerate(outputs) if name not in hidden]  # == observation columns
         low, high = self.config.initial_temperature_range
@@ -91,22 +92,17 @@ class PosteriorCalibration(Agent):
 
         per = self.nodes * self.k_nodes
         if self._sim is None or self._sim.n != n * per:
-            from hyst_gym.envs.suite_v2 import set_pinning
-
             self._sim = BatchSimulator(self.config.replace(output_noise=0.0), IDENTIFICATION, n * per)
             for row in range(n * per):
                 self._sim.set_generator(row, np.random.default_rng(row))
-            set_pinning(self._sim, np.arange(n * per), np.tile(self.node_k, n * self.nodes))
+            self._sim.set_pinning(np.arange(n * per), np.tile(self.node_k, n * self.nodes))
             self._log_post = np.zeros((n, self.nodes, self.k_nodes))
 
     def _restart(self, rows):
         sim, per = self._sim, self.nodes * self.k_nodes
         sub = (rows[:, None] * per + np.arange(per)[None, :]).ravel()
-        sim.reset(sub)
-        temperature = np.tile(np.repeat(self.node_temperature, self.k_nodes), rows.shape[0])
-        sim.temperature[sub] = temperature
-        sim.ambient0[sub] = temperature
-        sim.a_true[sub] = self.config.a_of(temperature)
+        # every node simulator starts at its grid node's temperature (the reset option, one value per row)
+        sim.reset(sub, {"initial_temperature": np.tile(np.repeat(self.node_temperature, self.k_nodes), rows.shape[0])})
         self._log_post[rows] = self.log_prior[:, None]
 
     def _update(self, observations, rows):

@@ -22,6 +22,10 @@ from .agents import Agent
 from .information import zero_order_hold
 from .schedules import ExcitationLimits
 
+#: the default models of the signatures below (frozen dataclasses: one shared instance is safe)
+DEFAULT_HYSTERESIS = HysteresisParams()
+DEFAULT_PLANT = FirstOrderPlant()
+
 
 class GreedyInformationAgent(Agent):
     """See module doc. ``theta`` = (low, high) bounds of a in A/m; ``nominal_a`` in A/m."""
@@ -29,7 +33,7 @@ class GreedyInformationAgent(Agent):
     name = "greedy_info"
 
     def __init__(self, limits: ExcitationLimits, theta=(6300.0, 7300.0), nominal_a=7012.0,
-                 params: HysteresisParams = HysteresisParams(), plant: FirstOrderPlant = FirstOrderPlant(),
+                 params: HysteresisParams = DEFAULT_HYSTERESIS, plant: FirstOrderPlant = DEFAULT_PLANT,
                  grid_size: int = 5, horizon: int = 5, directions=(-1.0, -0.5, 0.0, 0.5, 1.0),
                  estimate_of=None, max_field_step: float = 4 * DEFAULT_MAX_FIELD_STEP):
         super().__init__()

@@ -20,6 +20,10 @@ from scipy.signal import lfilter
 
 from hyst_gym.physics import FirstOrderPlant, HysteresisBatch, HysteresisParams, simulate_batch
 
+#: the default models of the signatures below (frozen dataclasses: one shared instance is safe)
+DEFAULT_HYSTERESIS = HysteresisParams()
+DEFAULT_PLANT = FirstOrderPlant()
+
 
 def zero_order_hold(plant: FirstOrderPlant, dt: float) -> tuple[float, float]:
     """``(pole, input_gain)`` of ``y' = -lambda*y + nu*M`` sampled every ``dt`` (s) with M held
@@ -34,7 +38,7 @@ def plant_output(plant: FirstOrderPlant, magnetization, dt: float, axis: int = 0
     return lfilter([0.0, input_gain], [1.0, -pole], magnetization, axis=axis)
 
 
-def magnetization_sensitivity(field, a_values, params: HysteresisParams = HysteresisParams(),
+def magnetization_sensitivity(field, a_values, params: HysteresisParams = DEFAULT_HYSTERESIS,
                               rel_step: float = 1e-3) -> np.ndarray:
     """dM/da (dimensionless) along ``field`` (A/m, from M = 0 at H = 0) for each a in ``a_values``.
 
@@ -48,8 +52,8 @@ def magnetization_sensitivity(field, a_values, params: HysteresisParams = Hyster
     return (magnetization[:, n:] - magnetization[:, :n]) / (2 * rel_step * a_values)
 
 
-def fisher_information(field, dt: float, a_values, params: HysteresisParams = HysteresisParams(),
-                       plant: FirstOrderPlant = FirstOrderPlant(), noise_std: float = 1.0) -> np.ndarray:
+def fisher_information(field, dt: float, a_values, params: HysteresisParams = DEFAULT_HYSTERESIS,
+                       plant: FirstOrderPlant = DEFAULT_PLANT, noise_std: float = 1.0) -> np.ndarray:
     """Fisher information about a (1/(A/m)^2 per unit noise variance) for each a in ``a_values``."""
     sensitivity = plant_output(plant, magnetization_sensitivity(field, a_values, params), dt, axis=0)
     return np.sum(sensitivity ** 2, axis=0) / noise_std ** 2

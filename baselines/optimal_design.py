@@ -4,8 +4,9 @@ Parameterization: ``H(t) = H0 + s * sum_k A_k sin(2*pi*k*t/period + phi_k)``, k 
 with a bias ``H0 = field_max*tanh(x_0)``, amplitudes ``A_k = |x_k|`` and phases
 ``phi_k = pi*x_{n+k}``; the sum is scaled by ``s`` so that the peak of ``|H|`` is at most
 ``field_max`` (a bias lets the design dwell where M is most sensitive to a, which a
-zero-mean multisine cannot). The field is then passed through the common slew limit (:func:`~baselines.schedules.apply_limits`), so the design obeys the same limits
-as every other agent. The period repeats over the episode.
+zero-mean multisine cannot). The field is then passed through the common slew limit
+(:func:`~baselines.schedules.apply_limits`), so the design obeys the same limits as every other agent.
+The period repeats over the episode.
 
 Criterion (issue 5, "Agents" 3): the log Fisher information ``log I(a)``
 (:mod:`baselines.information`) of one period
@@ -28,6 +29,10 @@ from hyst_gym.physics import FirstOrderPlant, HysteresisParams
 from .cma_search import cma_minimize
 from .information import fisher_information
 from .schedules import ExcitationLimits, Schedule, apply_limits
+
+#: the default models of the signatures below (frozen dataclasses: one shared instance is safe)
+DEFAULT_HYSTERESIS = HysteresisParams()
+DEFAULT_PLANT = FirstOrderPlant()
 
 
 @dataclass(frozen=True)
@@ -67,7 +72,7 @@ class DesignResult:
 
 
 def design_input(limits: ExcitationLimits, a_values=(7012.0,), period: float = 6.0, n_harmonics: int = 6,
-                 params: HysteresisParams = HysteresisParams(), plant: FirstOrderPlant = FirstOrderPlant(),
+                 params: HysteresisParams = DEFAULT_HYSTERESIS, plant: FirstOrderPlant = DEFAULT_PLANT,
                  max_evaluations: int = 400, seed: int = 0) -> DesignResult:
     """Run CMA-ES on the multisine coefficients; return the best design found.
 

@@ -1,4 +1,4 @@
-"""Agents of the benchmark suite v1 (``hyst_gym.envs.suite``): inputs, a thermostat, an oracle.
+"""Agents of the benchmark suite v1 (``hyst_gym.envs.suite_v1``): inputs, a thermostat, an oracle.
 
 Every agent here is a :class:`DesignBank`: one *design* per sub-environment, so the
 same object plays one design on many draws (the held-out evaluation) or many designs on

@@ -68,13 +68,10 @@ def observation_table(env) -> list[str]:
 
 def task_preset(env_id: str):
     """(description, EnvConfig overrides) of a suite task, or None for a base env."""
-    for module_name, table in (("hyst_gym.envs.suite", "SUITE_V1"), ("hyst_gym.envs.suite_v2", "TASKS_V2")):
-        try:
-            tasks = getattr(importlib.import_module(module_name), table)
-        except (ImportError, AttributeError):
-            continue
-        if env_id in tasks:
-            return tasks[env_id]["description"], tasks[env_id]["config"]
+    from hyst_gym.envs.tasks import TASKS
+
+    if env_id in TASKS:
+        return TASKS[env_id].description, TASKS[env_id].config
     return None
 
 

@@ -171,7 +171,8 @@ def main(argv=None) -> int:
               "train_wall_s_total": round(sum(r["train_wall_s"] for r in runs), 1),
               "worker_wall_s_total": round(sum(r["wall_s"] for r in runs), 1), "workers": args.workers,
               "machine": f"{platform.platform()}, {os.cpu_count()} CPUs (shared, loaded)",
-              "command": "python -m experiments.ablation_reward " + " ".join(argv if argv is not None else sys.argv[1:])}
+              "command": "python -m experiments.ablation_reward "
+                         + " ".join(argv if argv is not None else sys.argv[1:])}
     summary = summarize(RAW, budget)
     SUMMARY.write_text(json.dumps(summary, indent=2) + "\n")
     for arm, metrics in summary["arms"].items():

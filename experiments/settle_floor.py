@@ -223,7 +223,8 @@ def plot(paper, curves, traces, drift, drift_rms, summary, path):
     fig, axes = plt.subplots(1, 4, figsize=(20, 4.2))
     ax = axes[0]
     ax.plot(curves["fields"] / 1e3, curves["sensitivity"], color="k")
-    ax.axvline(paper["peak_field"] / 1e3, color="tab:red", ls=":", label=f"peak at {paper['peak_field'] / 1e3:.1f} kA/m")
+    ax.axvline(paper["peak_field"] / 1e3, color="tab:red", ls=":",
+               label=f"peak at {paper['peak_field'] / 1e3:.1f} kA/m")
     ax.set(xlabel="field H on the initial curve (kA/m)", ylabel="|dM/da| at a = 7012",
            title="Sensitivity that drives the estimator")
     ax.legend(loc="upper left")

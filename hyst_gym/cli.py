@@ -48,7 +48,7 @@ SUBCOMMANDS = {
                             True),
     "train": Subcommand("baselines.train", "train a PPO, SAC or RecurrentPPO excitation policy", True),
     "evaluate": Subcommand("baselines.evaluate", "evaluate an agent, write per-episode CSV", True),
-    "benchmark": Subcommand("experiments.suite_v2",
+    "benchmark": Subcommand("experiments.suite.command",
                             "run the benchmark suite (--suite v1 or v2): floors, baselines, RL, table, figure", True),
     "diagnose": Subcommand("hyst_gym.diagnose.command", "find which physics a recording shows that the model lacks"),
     "make-recording": Subcommand("hyst_gym.diagnose.make_recording",

@@ -4,7 +4,7 @@ Measures env steps per second and simulated seconds per wall second for a single
 (through ``gymnasium.make``, wrappers included) and for the native vector env at
 n = 1, 64 and 1024. Targets (issue 4, 2-core machine): >= 5,000 steps/s single and
 >= 100,000 aggregate steps/s at n = 1024. Each task of the benchmark suite
-(:mod:`hyst_gym.envs.suite`) is timed the same way, single and at n = 1024 (issue 13 target:
+(:mod:`hyst_gym.envs.suite_v1`) is timed the same way, single and at n = 1024 (issue 13 target:
 >= 20,000 and >= 200,000 steps/s). Where the time goes: run
 ``python -m cProfile -s tottime -m hyst_gym.envs.benchmark``.
 """
@@ -84,7 +84,7 @@ SUITE_TARGETS = {"single": 20_000, str(SUITE_VECTOR_SIZE): 200_000}
 
 def run_suite_benchmark(report, budget: float = TIME_BUDGET / 2, env_ids=None) -> dict:
     """Steps/s of the suite tasks' envs (registered ids; default all), single and at n = 1024."""
-    from .suite import TASKS
+    from .suite_v1 import TASKS
 
     speeds = {}
     for env_id in TASKS if env_ids is None else env_ids:

@@ -215,8 +215,18 @@ class EnvConfig:
     chirp_final_period: float = 1.0
 
     def __post_init__(self):
+        self._check_models()
+        self._check_numbers()
+        self._check_choices()
+        self._check_consistency()
+
+    def _set(self, name, value) -> None:
+        object.__setattr__(self, name, value)
+
+    def _check_models(self) -> None:
+        """The physics objects: hysteresis, transducer (a name becomes its object), thermal model."""
         owner = "EnvConfig"
-        setattr_ = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731
+        setattr_ = self._set
         if not isinstance(self.hysteresis, HysteresisParams):
             raise ValueError(f"{owner}: hysteresis must be a HysteresisParams, got {self.hysteresis!r}")
         transducer = self.transducer
@@ -231,6 +241,11 @@ class EnvConfig:
         setattr_("transducer", transducer)
         if not isinstance(self.thermal, ThermalParams):
             raise ValueError(f"{owner}: thermal must be a ThermalParams, got {self.thermal!r}")
+
+    def _check_numbers(self) -> None:
+        """Every number: ranges, positive and non-negative fields, integers, Theta and the initial estimate."""
+        owner = "EnvConfig"
+        setattr_ = self._set
         if self.temperature_mode not in TEMPERATURE_MODES:
             raise ValueError(f"{owner}: temperature_mode must be one of {TEMPERATURE_MODES}, "
                              f"got {self.temperature_mode!r}")
@@ -257,17 +272,25 @@ class EnvConfig:
         if not lo <= estimate <= hi:
             raise ValueError(f"{owner}: initial_estimate = {estimate!r} lies outside Theta = [{lo!r}, {hi!r}]")
         setattr_("initial_estimate", estimate)
+        if self.stroke_limit is not None:
+            setattr_("stroke_limit", _number(owner, "stroke_limit", self.stroke_limit, positive=True))
+
+    def _check_choices(self) -> None:
+        """The named choices: estimator (and its optional numbers), temperature sensor, schedule."""
+        owner = "EnvConfig"
+        setattr_ = self._set
         if self.estimator not in ESTIMATOR_NAMES:
             raise ValueError(f"{owner}: estimator {self.estimator!r} is unknown; expected one of {ESTIMATOR_NAMES}")
         for name in ("estimator_eps", "estimator_gamma"):
             if getattr(self, name) is not None:
                 setattr_(name, _number(owner, name, getattr(self, name), positive=True))
-        if self.stroke_limit is not None:
-            setattr_("stroke_limit", _number(owner, "stroke_limit", self.stroke_limit, positive=True))
         if not isinstance(self.temperature_sensor, (bool, np.bool_)):
             raise ValueError(f"{owner}: temperature_sensor must be True or False, got {self.temperature_sensor!r}")
         if self.schedule not in SCHEDULES:
             raise ValueError(f"{owner}: schedule must be one of {SCHEDULES}, got {self.schedule!r}")
+
+    def _check_consistency(self) -> None:
+        owner = "EnvConfig"
         # Physical consistency: the hysteresis model must be valid for every a the
         # episode can produce (validation raises naming the parameter), and the
         # temperature limit must lie above the initial temperatures.
@@ -342,4 +365,5 @@ def make_config(config: EnvConfig | None = None, **overrides) -> EnvConfig:
     return config
 
 
-__all__ = ["ESTIMATOR_NAMES", "EnvConfig", "MECHANICAL_ESTIMATOR_GAMMA", "SCHEDULES", "TEMPERATURE_MODES", "TRANSDUCER_NAMES", "make_config"]
+__all__ = ["ESTIMATOR_NAMES", "EnvConfig", "MECHANICAL_ESTIMATOR_GAMMA", "SCHEDULES", "TEMPERATURE_MODES",
+           "TRANSDUCER_NAMES", "make_config"]

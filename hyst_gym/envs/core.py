@@ -53,8 +53,10 @@ OUTPUT_BOUND = 2.0
 TEMPERATURE_BOUND = 5.0
 TEMPERATURE_SCALE = 10.0  # K
 
-#: the options ``reset`` accepts (see :meth:`BatchSimulator._checked_options`)
+#: the options ``reset`` accepts (see :meth:`BatchSimulator._checked_options`); ``pinning_k`` only where the
+#: simulator draws k from a prior
 RESET_OPTIONS = ("initial_temperature", "ambient_drift_rate", "a_true", "a_estimate")
+PINNING_OPTION = "pinning_k"
 
 INFO_KEYS = ("a_true", "a_estimate", "estimation_error", "temperature", "field", "magnetization", "output",
              "time", "pe_integrand", "curvature_sign", "stroke_margin", "temperature_margin", "penalty")
@@ -204,10 +206,44 @@ def step_kernels(mode: str, estimator: str) -> tuple:
     return (fill_observation, fill_info, clip_actions, plant_step, finish_step)
 
 
+def _temperature_quantile(prior: str):
+    """None (uniform start temperature) or the quantile function [0, 1] -> [0, 1] that shapes the draw."""
+    if prior == "uniform":
+        return None
+    if prior == "raised_cosine":
+        from ..estimation.information_bound import raised_cosine_quantile
+
+        return raised_cosine_quantile
+    raise ValueError(f"temperature_prior must be 'uniform' or 'raised_cosine', got {prior!r}")
+
+
 def spawn_streams(generator: np.random.Generator):
     """(episode generator, noise generator) spawned from a sub-env's seeded generator."""
     episode, noise = generator.spawn(2)
     return episode, noise
+
+
+def _checked_number(name: str, value, valid: tuple) -> float:
+    """``value`` as a float within ``valid`` = (low, high, low inclusive, unit, why); a ValueError naming it."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"reset option {name} must be a number, got {type(value).__name__} "
+                         f"{_brief_repr(value)}")
+    value = float(value)
+    low, high, low_inclusive, unit, why = valid
+    above_low = value >= low if low_inclusive else value > low
+    if not (math.isfinite(value) and above_low and value <= high):
+        bracket = "[" if low_inclusive else "("
+        span = "finite" if name == "ambient_drift_rate" else f"in {bracket}{low:g}, {high:g}] {unit} ({why})"
+        raise ValueError(f"reset option {name} = {value!r} {unit} is out of range: it must be {span}")
+    return value
+
+
+def _checked_pinning(value) -> float:
+    """The reset option ``pinning_k`` (A/m, finite, > 0) as a float; a ValueError naming it."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or \
+            not np.isfinite(value) or value <= 0:
+        raise ValueError(f"reset option {PINNING_OPTION} must be a finite number > 0 (A/m), got {value!r}")
+    return float(value)
 
 
 class BatchSimulator:
@@ -225,10 +261,17 @@ class BatchSimulator:
         observation is always relative to ``config.episode_steps``.
     record : bool
         Keep per-step histories (for rendering).
+    temperature_prior : {"uniform", "raised_cosine"}
+        The shape of the start-temperature draw over ``config.initial_temperature_range``: uniform, or
+        the raised cosine of :func:`~hyst_gym.estimation.information_bound.raised_cosine_quantile`.
+    pinning_prior : optional
+        An object with ``draw(u) -> k`` (A/m), e.g. :class:`~hyst_gym.envs.task_spec.PinningPrior`: each
+        reset draws the sub-env's k of model (6) from it (after the sub-env's other draws); the reset option
+        ``pinning_k`` (A/m) sets it instead. None: k stays at the config's.
     """
 
     def __init__(self, config: EnvConfig, mode: str, n: int = 1, truncation_steps: int | None = None,
-                 record: bool = False):
+                 record: bool = False, temperature_prior: str = "uniform", pinning_prior=None):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         # before the estimator is built: building it already compiles kernels
@@ -247,9 +290,9 @@ class BatchSimulator:
         self.action_size = action_size(mode)
         self.record = record
         self.history: list[list[dict]] = [[] for _ in range(self.n)]
-        #: None (uniform initial temperature) or a vectorized quantile function [0, 1] -> [0, 1]
-        #: that shapes the uniform draw (a task's prior over the initial temperature)
-        self.temperature_quantile = None
+        self.temperature_quantile = _temperature_quantile(temperature_prior)
+        self.temperature_prior = temperature_prior
+        self.pinning_prior = pinning_prior
         self._make_estimator()
         self._allocate_plant()
         self._allocate_noise()
@@ -416,38 +459,44 @@ class BatchSimulator:
         """The pinning constant k (A/m) of every sub-env (a copy)."""
         return self._k.copy()
 
+    def shift_temperature(self, rows, change) -> None:
+        """Step the coil and its surroundings of sub-envs ``rows`` by ``change`` (K) mid-episode (a mount
+        change): temperature, ambient and a = a(T) move together; the next step starts from them."""
+        self.temperature[rows] += change
+        self.ambient0[rows] += change
+        self.a_true[rows] = self.config.a_of(self.temperature[rows])
+
     def set_generator(self, row: int, generator: np.random.Generator) -> None:
         """Give sub-env ``row`` its seeded generator (its two streams are spawned from it)."""
         self.episode_rngs[row], self.noise_rngs[row] = spawn_streams(generator)
         self._noise_pos[row] = NOISE_BLOCK
 
     def reset(self, rows, options: dict | None = None) -> None:
-        """Start new episodes in sub-envs ``rows`` (array of int), drawing from their streams."""
+        """Start new episodes in sub-envs ``rows`` (array of int), drawing from their streams.
+        ``options``: :meth:`_checked_options` (``initial_temperature`` may hold one value per row)."""
         config = self.config
         rows = np.asarray(rows, dtype=np.int64)
         if options is not None and not isinstance(options, dict):
             raise ValueError(f"reset: options must be a dict or None, got {type(options).__name__} "
                              f"{_brief_repr(options)}")
-        options = self._checked_options(options or {})
-        t_lo, t_hi = config.initial_temperature_range
+        options = self._checked_options(options or {}, rows.shape[0])
         d_lo, d_hi = config.ambient_drift_rate_range
-        for row in rows:
+        fractions = np.zeros(rows.shape[0])
+        for i, row in enumerate(rows):
             rng = self.episode_rngs[row]
             if rng is None:
                 raise RuntimeError("reset: sub-env has no generator; call set_generator first")
             draws = rng.random(2)
-            fraction = draws[0] if self.temperature_quantile is None else float(self.temperature_quantile(draws[0]))
-            self.temperature[row] = t_lo + (t_hi - t_lo) * fraction
+            fractions[i] = draws[0]
             self.drift_rate[row] = d_lo + (d_hi - d_lo) * draws[1]
             if config.schedule == "prbs" and self.mode == ESTIMATION:
                 self.prbs_bits[row] = np.where(rng.random(self.prbs_bits.shape[1]) < 0.5, -1.0, 1.0)
+            if self.pinning_prior is not None:  # drawn even when the option fixes k: the streams stay aligned
+                self._k[row] = self.pinning_prior.draw(rng.random())
             self._noise_pos[row] = NOISE_BLOCK  # a new episode starts a new noise block
-        if config.a_true is not None:
-            self.temperature[rows] = config.temperature_for_a(config.a_true)
-        if "a_true" in options:
-            self.temperature[rows] = config.temperature_for_a(options["a_true"])
-        if "initial_temperature" in options:
-            self.temperature[rows] = options["initial_temperature"]
+        self.temperature[rows] = self._start_temperature(fractions, options)
+        if PINNING_OPTION in options:
+            self._k[rows] = options[PINNING_OPTION]
         if "ambient_drift_rate" in options:
             self.drift_rate[rows] = options["ambient_drift_rate"]
         self.ambient0[rows] = self.temperature[rows]
@@ -475,7 +524,23 @@ class BatchSimulator:
         if self.record:
             self._record(rows)
 
-    def _checked_options(self, options: dict) -> dict:
+    def _start_temperature(self, fractions: np.ndarray, options: dict) -> np.ndarray:
+        """The start temperatures (K) of the reset rows: the one place they are set. In order of precedence:
+        the option ``initial_temperature``, the option ``a_true``, the config's ``a_true``, the draw
+        ``fractions`` (uniform in [0, 1)) shaped by the temperature prior over ``initial_temperature_range``."""
+        config = self.config
+        if "initial_temperature" in options:
+            return np.broadcast_to(options["initial_temperature"], fractions.shape)
+        if "a_true" in options:
+            return np.full(fractions.shape, config.temperature_for_a(options["a_true"]))
+        if config.a_true is not None:
+            return np.full(fractions.shape, config.temperature_for_a(config.a_true))
+        t_lo, t_hi = config.initial_temperature_range
+        if self.temperature_quantile is not None:
+            fractions = np.array([float(self.temperature_quantile(f)) for f in fractions])
+        return t_lo + (t_hi - t_lo) * fractions
+
+    def _checked_options(self, options: dict, n_rows: int = 1) -> dict:
         """The reset options as floats, each checked against the range the config makes
         physical; a ``ValueError`` naming the option and its range otherwise.
 
@@ -484,16 +549,21 @@ class BatchSimulator:
         * ``a_true`` (A/m): in (0, a(temperature_limit)], since a(T) = a_reference*T/T_ref;
         * ``a_estimate`` (A/m): in Theta = [theta_min, theta_max], as ``initial_estimate``;
         * ``ambient_drift_rate`` (K/s): any finite number (a fast drift is a legitimate
-          stress test; it ends the episode at the temperature limit).
+          stress test; it ends the episode at the temperature limit);
+        * ``pinning_k`` (A/m, > 0; only with a ``pinning_prior``): the episode's k, in place of the draw.
+
+        ``initial_temperature`` may be a 1-D array with one value per reset row (``n_rows``).
 
         The hysteresis model must also be valid at the resulting ``a`` (checked by the
         physics layer, which names the parameter).
         """
         config = self.config
-        unknown = set(options) - set(RESET_OPTIONS)
+        allowed = RESET_OPTIONS + ((PINNING_OPTION,) if self.pinning_prior is not None else ())
+        unknown = set(options) - set(allowed)
         if unknown:
             raise ValueError(f"reset: unknown option(s) {sorted(unknown)}; expected initial_temperature (K), "
-                             f"ambient_drift_rate (K/s), a_true (A/m), a_estimate (A/m)")
+                             f"ambient_drift_rate (K/s), a_true (A/m), a_estimate (A/m)"
+                             + (f", {PINNING_OPTION} (A/m)" if self.pinning_prior is not None else ""))
         a_max = float(config.a_of(config.temperature_limit))
         ranges = {  # name -> (low, high, low inclusive, unit, why)
             "initial_temperature": (0.0, config.temperature_limit, False, "K",
@@ -505,24 +575,23 @@ class BatchSimulator:
         }
         checked = {}
         for name, value in options.items():
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-                raise ValueError(f"reset option {name} must be a number, got {type(value).__name__} "
-                                 f"{_brief_repr(value)}")
-            value = float(value)
-            low, high, low_inclusive, unit, why = ranges[name]
-            above_low = value >= low if low_inclusive else value > low
-            if not (math.isfinite(value) and above_low and value <= high):
-                bracket = "[" if low_inclusive else "("
-                span = "finite" if name == "ambient_drift_rate" else f"in {bracket}{low:g}, {high:g}] {unit} ({why})"
-                raise ValueError(f"reset option {name} = {value!r} {unit} is out of range: it must be {span}")
-            checked[name] = value
+            if name == PINNING_OPTION:
+                checked[name] = _checked_pinning(value)
+            elif name == "initial_temperature" and isinstance(value, np.ndarray) and value.ndim == 1:
+                # one start temperature per reset row (a grid of simulators started at its nodes)
+                if value.shape[0] != n_rows:
+                    raise ValueError(f"reset option initial_temperature has {value.shape[0]} values for {n_rows} "
+                                     "rows; give one number or one per reset row")
+                checked[name] = np.array([_checked_number(name, v, ranges[name]) for v in value])
+            else:
+                checked[name] = _checked_number(name, value, ranges[name])
         temperature = None
         if "a_true" in checked:
             temperature = config.temperature_for_a(checked["a_true"])
         if "initial_temperature" in checked:
             temperature = checked["initial_temperature"]
-        if temperature is not None:
-            config.hysteresis.replace(a=float(config.a_of(temperature)))  # raises naming the parameter
+        for value in np.unique(np.atleast_1d(temperature if temperature is not None else [])):
+            config.hysteresis.replace(a=float(config.a_of(value)))  # raises naming the parameter
         return checked
 
     # ------------------------------------------------------------------ stepping

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import gymnasium
 
+from .tasks import TASKS, suite_ids
+
 #: id -> (single env class, vector env class), "module:Class" strings (lazy import)
 ENV_IDS = {
     "hyst_gym/Excitation-v0": ("hyst_gym.envs.single:ExcitationEnv", "hyst_gym.envs.vector:ExcitationVectorEnv"),
@@ -22,17 +24,12 @@ ENV_IDS = {
     "hyst_gym/Identification-v0": ("hyst_gym.envs.single:IdentificationEnv",
                                    "hyst_gym.envs.vector:IdentificationVectorEnv"),
 }
-#: the benchmark suite's task ids (presets of Excitation-v0 in :mod:`hyst_gym.envs.suite`, which
-#: is imported only when one is made, so registering stays cheap); each is made with ``task=id``
-SUITE_IDS = ("hyst_gym/HotCoil-v1", "hyst_gym/HotCoilNoisy-v1", "hyst_gym/HotCoilWideStart-v1",
-             "hyst_gym/CoolantFailure-v1", "hyst_gym/WarmCoil-v1", "hyst_gym/HotCoilLumped-v1")
-ENV_IDS.update({env_id: ("hyst_gym.envs.suite:make_env", "hyst_gym.envs.suite:make_vector_env")
-                for env_id in SUITE_IDS})
-#: suite v2's task ids (:mod:`hyst_gym.envs.suite_v2`: envs of their own, made with ``task=id``)
-SUITE_V2_IDS = ("hyst_gym/HotCalibrate-v0", "hyst_gym/HotCalibrateNoisy-v0", "hyst_gym/DisplacementOnly-v0",
-                "hyst_gym/HotCalibrateUnknownK-v0", "hyst_gym/DriftJump-v0")
-ENV_IDS.update({env_id: ("hyst_gym.envs.suite_v2:make_env", "hyst_gym.envs.suite_v2:make_vector_env")
-                for env_id in SUITE_V2_IDS})
+#: the benchmark suites' task ids (:data:`hyst_gym.envs.tasks.TASKS`, the one list): every one is made by
+#: :func:`hyst_gym.envs.tasks.make_env` with ``task=id``, which picks the env classes of the task's kind
+SUITE_IDS = suite_ids("v1")
+SUITE_V2_IDS = suite_ids("v2")
+ENV_IDS.update({env_id: ("hyst_gym.envs.tasks:make_env", "hyst_gym.envs.tasks:make_vector_env")
+                for env_id in TASKS})
 
 
 def register_envs() -> None:
@@ -40,7 +37,7 @@ def register_envs() -> None:
     for env_id, (entry_point, vector_entry_point) in ENV_IDS.items():
         if env_id in gymnasium.registry:
             continue
-        kwargs = {"task": env_id} if env_id in SUITE_IDS + SUITE_V2_IDS else {}
+        kwargs = {"task": env_id} if env_id in TASKS else {}
         gymnasium.register(id=env_id, entry_point=entry_point, vector_entry_point=vector_entry_point,
                            kwargs=kwargs)
 

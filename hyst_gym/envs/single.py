@@ -31,6 +31,9 @@ class HystEnv(gym.Env):
     config : EnvConfig, optional
         The system (default :class:`EnvConfig`).
     render_mode : {None, "rgb_array", "human"}
+    temperature_prior, pinning_prior
+        The episode draws of :class:`~.core.BatchSimulator` (the start-temperature shape and a prior
+        of k); the defaults draw T0 uniformly and keep k at the config's.
     **overrides
         Fields of :class:`EnvConfig` to change.
 
@@ -47,12 +50,14 @@ class HystEnv(gym.Env):
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 30}
     mode = EXCITATION
 
-    def __init__(self, config: EnvConfig | None = None, render_mode: str | None = None, **overrides):
+    def __init__(self, config: EnvConfig | None = None, render_mode: str | None = None,
+                 temperature_prior: str = "uniform", pinning_prior=None, **overrides):
         self.config = make_config(config, **overrides)
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise ValueError(f"render_mode must be one of {RENDER_MODES} or None, got {render_mode!r}")
         self.render_mode = render_mode
-        self.sim = BatchSimulator(self.config, self.mode, 1, record=render_mode is not None)
+        self.sim = BatchSimulator(self.config, self.mode, 1, record=render_mode is not None,
+                                  temperature_prior=temperature_prior, pinning_prior=pinning_prior)
         self.observation_space = spaces.Box(self.sim.obs_low, self.sim.obs_high, dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (self.sim.action_size,), dtype=np.float32)
         self._figure = None

@@ -13,20 +13,18 @@ Two kinds of task, both on the compiled simulator of :mod:`hyst_gym.envs.core`:
 
 Each id's class docstring is its documentation page (Gymnasium's sections). The presets live in
 :data:`TASKS_V2`; ``gymnasium.make(id)`` and ``gymnasium.make_vec(id, num_envs=n,
-vectorization_mode="vector_entry_point")`` build them through :func:`make_env` and
-:func:`make_vector_env`.
+vectorization_mode="vector_entry_point")`` build them through :func:`hyst_gym.envs.tasks.make_env` and
+:func:`hyst_gym.envs.tasks.make_vector_env`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from ..estimation.information_bound import raised_cosine_quantile
-from .config import make_config
+from .core import PINNING_OPTION as CORE_PINNING_OPTION
 from .single import ExcitationEnv, IdentificationEnv
-from .suite import COMMON, HOT_THERMAL
+from .suite_v1 import COMMON, ENV_KEYWORDS, HOT_THERMAL
+from .task_spec import PinningPrior, TaskSpec
 from .vector import ExcitationVectorEnv, IdentificationVectorEnv
 
 #: calibration presets: the hot coil of v1, no ambient drift (the heating is then a known function
@@ -45,132 +43,73 @@ JUMP_RANGE = (278.15, 323.15)
 CALIBRATE_SCORED_FROM = 100
 
 
-@dataclass(frozen=True)
-class PinningPrior:
-    """Uniform prior of the pinning constant k of model (6) over ``[low, high]`` (A/m, ``0 < low < high``),
-    drawn per episode: ``k = low + (high - low)*u`` with u uniform from the sub-env's episode generator,
-    drawn after the simulator's own draws."""
-
-    low: float
-    high: float
-
-    def __post_init__(self):
-        for name in ("low", "high"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value <= 0:
-                raise ValueError(f"PinningPrior: {name} must be a finite number > 0 (A/m), got {value!r}")
-        if not self.low < self.high:
-            raise ValueError(f"PinningPrior: high must exceed low, got low={self.low!r}, high={self.high!r}")
-
-    def nodes(self, count: int) -> np.ndarray:
-        """``count`` midpoints of equal cells over the support (A/m)."""
-        return self.low + (self.high - self.low) * (np.arange(count) + 0.5) / count
-
-
 #: k of the "several unknowns" task: +-20 % about the Terfenol-D value of model (6), 400 A/m
 K_PRIOR = PinningPrior(320.0, 480.0)
 
 
-def _task(kind, family, description, difficulty, config, sensors=None, k_prior=None):
-    return {"kind": kind, "family": family, "description": description, "difficulty": difficulty,
-            "config": config, "sensors": sensors, "k_prior": k_prior,
-            "scored_from": CALIBRATE_SCORED_FROM if kind == "calibrate" else 0}
+def _task(task_id, kind, family, description, difficulty, config, sensors_hidden=(), k_prior=None):
+    calibrate = kind == "calibrate"
+    if k_prior is not None:
+        kind = "calibrate_unknown_k"
+    return TaskSpec(task_id, "v2", kind, family, description, difficulty, config, sensors_hidden, k_prior,
+                    temperature_prior="raised_cosine" if calibrate else "uniform",
+                    scored_from=CALIBRATE_SCORED_FROM if calibrate else 0)
 
 
-#: id -> {"kind" ("calibrate" or "jump"), "family" (issue 23's family), "description", "difficulty",
-#: "config" (EnvConfig overrides), "sensors" (observation entries hidden from the agent, or None),
-#: "k_prior" (a :class:`PinningPrior`, or None: k fixed at the preset's), "scored_from" (first step of the metric)}
-TASKS_V2 = {
-    "hyst_gym/HotCalibrate-v0": _task(
-        "calibrate", "hot coil (calibrate)", "Calibrate a hot coil: report a every step while exciting; the coil "
-        "overheats if excited at full field for about a second from a warm start", 1, CALIBRATE),
-    "hyst_gym/HotCalibrateNoisy-v0": _task(
-        "calibrate", "hot coil (calibrate)", "The hot-coil calibration with a 10x noisier sensor (1e-3 of full "
-        "scale)", 2, {**CALIBRATE, "output_noise": 1.0e-3}),
-    "hyst_gym/DisplacementOnly-v0": _task(
-        "calibrate", "displacement-only sensing", "The hot-coil calibration on the lumped transducer (13) with "
-        "only the tip displacement sensed (no velocity), 10x sensor noise", 3,
-        {**CALIBRATE, "transducer": "lumped", "output_noise": 1.0e-3}, sensors=("velocity",)),
-    "hyst_gym/HotCalibrateUnknownK-v0": _task(
-        "calibrate", "several unknowns", "The hot-coil calibration with the pinning constant k also unknown "
-        "(uniform over 320..480 A/m, +-20 % about nominal, per episode); k shapes the loops, so an estimate "
-        "of a that assumes the nominal k is biased unless the input makes reversals that tell k apart", 3,
-        CALIBRATE, k_prior=K_PRIOR),
-    "hyst_gym/DriftJump-v0": _task(
-        "jump", "drift events", "Mount change: at an unknown time in 2..8 s the coil and its surroundings step by "
-        "5..12 K, so a jumps by 120..290 A/m; the min-max estimator must be re-excited without overheating", 4,
-        JUMP),
-}
+#: suite v2's tasks (:class:`~hyst_gym.envs.task_spec.TaskSpec`; kind ``calibrate`` or ``jump``)
+TASKS_V2 = (
+    _task("hyst_gym/HotCalibrate-v0",
+          "calibrate", "hot coil (calibrate)", "Calibrate a hot coil: report a every step while exciting; the coil "
+          "overheats if excited at full field for about a second from a warm start", 1, CALIBRATE),
+    _task("hyst_gym/HotCalibrateNoisy-v0",
+          "calibrate", "hot coil (calibrate)", "The hot-coil calibration with a 10x noisier sensor (1e-3 of full "
+          "scale)", 2, {**CALIBRATE, "output_noise": 1.0e-3}),
+    _task("hyst_gym/DisplacementOnly-v0",
+          "calibrate", "displacement-only sensing", "The hot-coil calibration on the lumped transducer (13) with "
+          "only the tip displacement sensed (no velocity), 10x sensor noise", 3,
+          {**CALIBRATE, "transducer": "lumped", "output_noise": 1.0e-3}, sensors_hidden=("velocity",)),
+    _task("hyst_gym/HotCalibrateUnknownK-v0",
+          "calibrate", "several unknowns", "The hot-coil calibration with the pinning constant k also unknown "
+          "(uniform over 320..480 A/m, +-20 % about nominal, per episode); k shapes the loops, so an estimate "
+          "of a that assumes the nominal k is biased unless the input makes reversals that tell k apart", 3,
+          CALIBRATE, k_prior=K_PRIOR),
+    _task("hyst_gym/DriftJump-v0",
+          "jump", "drift events", "Mount change: at an unknown time in 2..8 s the coil and its surroundings step by "
+          "5..12 K, so a jumps by 120..290 A/m; the min-max estimator must be re-excited without overheating", 4,
+          JUMP),
+)
 
 
-def _spec(task: str) -> dict:
-    if task not in TASKS_V2:
-        raise ValueError(f"unknown suite v2 task {task!r}; expected one of {sorted(TASKS_V2)}")
-    return TASKS_V2[task]
+#: suite v2's tasks by id (a view of :data:`TASKS_V2`; every suite's tasks: :data:`hyst_gym.envs.tasks.TASKS`)
+V2_BY_ID = {spec.id: spec for spec in TASKS_V2}
+
+
+def _spec(task: str, kind: str | None = None) -> TaskSpec:
+    if task not in V2_BY_ID:
+        raise ValueError(f"unknown suite task {task!r}; expected one of {sorted(V2_BY_ID)}")
+    spec = V2_BY_ID[task]
+    if kind is not None and (spec.calibrates if kind == "calibrate" else spec.kind == kind) is False:
+        raise ValueError(f"{task!r} is not a {'calibration' if kind == 'calibrate' else 'drift-jump'} task")
+    return spec
 
 
 def task_config_v2(task: str, **overrides):
     """The :class:`~hyst_gym.envs.config.EnvConfig` of a v2 task (with ``overrides``)."""
-    return make_config(**{**_spec(task)["config"], **overrides})
+    return _spec(task).env_config(**overrides)
 
 
 # ---------------------------------------------------------------------------- calibration
 
-
-def set_pinning(sim, rows, k) -> None:
-    """Set the pinning constant k (A/m) of sub-envs ``rows`` of a
-    :class:`~hyst_gym.envs.core.BatchSimulator` (:meth:`~hyst_gym.envs.core.BatchSimulator.set_pinning`),
-    so the next steps of those rows follow model (6) with that k."""
-    sim.set_pinning(rows, k)
-
-
-def pinning_of(sim) -> np.ndarray:
-    """The pinning constant k (A/m) of every sub-env of a simulator (a copy)."""
-    return sim.pinning
-
-
 #: the reset option of the "several unknowns" task: the episode's k (A/m), bypassing the prior
-PINNING_OPTION = "pinning_k"
-
-
-def _pinning_option(options):
-    """(simulator options, the ``pinning_k`` option or None); a bad value is a ValueError naming it."""
-    if not isinstance(options, dict) or PINNING_OPTION not in options:
-        return options, None
-    options = dict(options)
-    value = options.pop(PINNING_OPTION)
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or \
-            not np.isfinite(value) or value <= 0:
-        raise ValueError(f"reset option {PINNING_OPTION} must be a finite number > 0 (A/m), got {value!r}")
-    return options, float(value)
-
-
-def _draw_pinning_on_reset(sim, prior: PinningPrior) -> None:
-    """Make every reset of ``sim`` (the env's reset and the vector env's autoresets alike) draw each reset
-    row's k from ``prior`` with the row's episode generator, after the simulator's own draws; the reset
-    option ``pinning_k`` (A/m) sets it instead."""
-    reset = sim.reset
-
-    def reset_with_pinning(rows, options=None):
-        options, fixed = _pinning_option(options)
-        reset(rows, options)
-        rows = np.atleast_1d(np.asarray(rows, dtype=np.int64))
-        drawn = np.array([prior.low + (prior.high - prior.low) * sim.episode_rngs[row].random() for row in rows])
-        set_pinning(sim, rows, drawn if fixed is None else fixed)
-
-    sim.reset = reset_with_pinning
+PINNING_OPTION = CORE_PINNING_OPTION
 
 
 class _Calibrate:
-    """Shared by the single and the vector calibration env: the raised-cosine prior on the start
-    temperature, the sensor selection (observation columns kept) and, where the task has one, the
-    prior of k."""
+    """Shared by the single and the vector calibration env: the sensor selection (observation columns
+    kept). The simulator draws the start temperature and, where the task has one, k from the task's priors."""
 
     def _setup_calibrate(self, hidden, k_prior=None):
-        self.sim.temperature_quantile = raised_cosine_quantile
         self.k_prior = k_prior
-        if k_prior is not None:
-            _draw_pinning_on_reset(self.sim, k_prior)
         names = self.sim.obs_names
         self._keep = np.array([i for i, name in enumerate(names) if name not in (hidden or ())])
         self.kept_names = [names[i] for i in self._keep]
@@ -180,7 +119,7 @@ class _Calibrate:
     @property
     def k_true(self) -> np.ndarray:
         """The pinning constant k of each sub-env's episode (A/m; the preset's k where the task has no prior)."""
-        return pinning_of(self.sim)
+        return self.sim.pinning
 
 
 class HotCalibrateEnv(_Calibrate, IdentificationEnv):
@@ -193,7 +132,7 @@ class HotCalibrateEnv(_Calibrate, IdentificationEnv):
     temperature is unknown (a raised-cosine prior over 5..45 C), the ambient equals it and does not
     drift, and Joule heating ``R*(H/n)**2`` heats the coil by about 13 K/s at 81 kA/m, so a warm
     coil affords about a second of full excitation. The floor is a Van Trees bound on the RMS error
-    of any estimate under any admissible input (``experiments/suite_v2.py``).
+    of any estimate under any admissible input (``experiments/suite/v2.py``).
 
     ## Action Space
     ``Box(-1, 1, (2,))``: (field command / field_limit (1e5 A/m); the applied field moves towards it by
@@ -238,12 +177,10 @@ class HotCalibrateEnv(_Calibrate, IdentificationEnv):
     """
 
     def __init__(self, task: str = "hyst_gym/HotCalibrate-v0", render_mode=None, **overrides):
-        spec = _spec(task)
-        if spec["kind"] != "calibrate":
-            raise ValueError(f"{task!r} is not a calibration task")
-        super().__init__(make_config(**{**spec["config"], **overrides}), render_mode=render_mode)
+        spec = _spec(task, "calibrate")
+        super().__init__(spec.env_config(**overrides), render_mode=render_mode, **spec.simulator_priors())
         self.task = task
-        low, high = self._setup_calibrate(spec["sensors"], spec["k_prior"])
+        low, high = self._setup_calibrate(spec.sensors_hidden, spec.k_prior)
         from gymnasium import spaces
 
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
@@ -254,6 +191,8 @@ class HotCalibrateEnv(_Calibrate, IdentificationEnv):
 
     def reset(self, *, seed=None, options=None):
         observation, info = super().reset(seed=seed, options=options)
+        if self.k_prior is not None:
+            info["k_true"] = float(self.k_true[0])
         return observation[self._keep], info
 
     def step(self, action):
@@ -265,13 +204,11 @@ class HotCalibrateVectorEnv(_Calibrate, IdentificationVectorEnv):
     """Native vector env of the calibration tasks (see :class:`HotCalibrateEnv`)."""
 
     def __init__(self, num_envs: int = 1, task: str = "hyst_gym/HotCalibrate-v0", **overrides):
-        spec = _spec(task)
-        if spec["kind"] != "calibrate":
-            raise ValueError(f"{task!r} is not a calibration task")
-        super().__init__(num_envs, make_config(**{**spec["config"], **overrides.pop("config_overrides", {})}),
-                         **overrides)
+        spec = _spec(task, "calibrate")
+        env_args = {key: overrides.pop(key) for key in ENV_KEYWORDS if key in overrides}
+        super().__init__(num_envs, spec.env_config(**overrides), **env_args, **spec.simulator_priors())
         self.task = task
-        low, high = self._setup_calibrate(spec["sensors"], spec["k_prior"])
+        low, high = self._setup_calibrate(spec.sensors_hidden, spec.k_prior)
         from gymnasium import spaces
         from gymnasium.vector.utils import batch_space
 
@@ -355,14 +292,9 @@ class HotCalibrateUnknownKEnv(HotCalibrateEnv):
     """
 
     def __init__(self, task: str = "hyst_gym/HotCalibrateUnknownK-v0", render_mode=None, **overrides):
-        if _spec(task)["k_prior"] is None:
+        if _spec(task).k_prior is None:
             raise ValueError(f"{task!r} has no prior over k; use HotCalibrateEnv")
         super().__init__(task, render_mode=render_mode, **overrides)
-
-    def reset(self, *, seed=None, options=None):
-        observation, info = super().reset(seed=seed, options=options)
-        info["k_true"] = float(self.k_true[0])
-        return observation, info
 
 
 class HotCalibrateUnknownKVectorEnv(HotCalibrateVectorEnv):
@@ -370,7 +302,7 @@ class HotCalibrateUnknownKVectorEnv(HotCalibrateVectorEnv):
     every reset, the automatic ones included, draws each reset sub-env's k; ``k_true`` holds them."""
 
     def __init__(self, num_envs: int = 1, task: str = "hyst_gym/HotCalibrateUnknownK-v0", **overrides):
-        if _spec(task)["k_prior"] is None:
+        if _spec(task).k_prior is None:
             raise ValueError(f"{task!r} has no prior over k; use HotCalibrateVectorEnv")
         super().__init__(num_envs, task, **overrides)
 
@@ -408,10 +340,7 @@ class _Jump:
         sim = self.sim
         rows = np.flatnonzero(sim.steps == self.jump_step)
         if rows.size:
-            change = self.jump_change[rows]
-            sim.temperature[rows] += change
-            sim.ambient0[rows] += change
-            sim.a_true[rows] = sim.config.a_of(sim.temperature[rows])
+            sim.shift_temperature(rows, self.jump_change[rows])
 
 
 def _split_options(options):
@@ -475,9 +404,8 @@ class DriftJumpEnv(_Jump, ExcitationEnv):
     """
 
     def __init__(self, task: str = "hyst_gym/DriftJump-v0", render_mode=None, **overrides):
-        if _spec(task)["kind"] != "jump":
-            raise ValueError(f"{task!r} is not a drift-jump task")
-        super().__init__(make_config(**{**TASKS_V2[task]["config"], **overrides}), render_mode=render_mode)
+        spec = _spec(task, "jump")
+        super().__init__(spec.env_config(**overrides), render_mode=render_mode, **spec.simulator_priors())
         self.task = task
 
     def reset(self, *, seed=None, options=None):
@@ -496,13 +424,9 @@ class DriftJumpVectorEnv(_Jump, ExcitationVectorEnv):
     reset automatically (``NEXT_STEP`` or ``SAME_STEP``) draw a new jump, as a single env's reset does."""
 
     def __init__(self, num_envs: int = 1, task: str = "hyst_gym/DriftJump-v0", **overrides):
-        if _spec(task)["kind"] != "jump":
-            raise ValueError(f"{task!r} is not a drift-jump task")
-        env_keys = {"max_episode_steps", "autoreset_mode", "render_mode"}
-        env_args = {key: value for key, value in overrides.items() if key in env_keys}
-        config = make_config(**{**TASKS_V2[task]["config"],
-                                **{k: v for k, v in overrides.items() if k not in env_keys}})
-        super().__init__(num_envs, config, **env_args)
+        spec = _spec(task, "jump")
+        env_args = {key: overrides.pop(key) for key in ENV_KEYWORDS if key in overrides}
+        super().__init__(num_envs, spec.env_config(**overrides), **env_args, **spec.simulator_priors())
         self.task = task
 
     def reset(self, *, seed=None, options=None):
@@ -528,33 +452,8 @@ class DriftJumpVectorEnv(_Jump, ExcitationVectorEnv):
         return result
 
 
-# ---------------------------------------------------------------------------- entry points
-
-
-def make_env(task: str, **overrides):
-    """Gymnasium entry point of a v2 id."""
-    spec = _spec(task)
-    if spec["kind"] == "calibrate":
-        cls = HotCalibrateEnv if spec["k_prior"] is None else HotCalibrateUnknownKEnv
-    else:
-        cls = DriftJumpEnv
-    return cls(task, **overrides)
-
-
-def make_vector_env(task: str, num_envs: int = 1, **overrides):
-    """Vector entry point of a v2 id."""
-    if _spec(task)["kind"] == "jump":
-        return DriftJumpVectorEnv(num_envs, task, **overrides)
-    env_keys = {"max_episode_steps", "autoreset_mode", "render_mode"}
-    config_overrides = {k: v for k, v in overrides.items() if k not in env_keys}
-    env_args = {k: v for k, v in overrides.items() if k in env_keys}
-    cls = HotCalibrateVectorEnv if _spec(task)["k_prior"] is None else HotCalibrateUnknownKVectorEnv
-    return cls(num_envs, task, config_overrides=config_overrides, **env_args)
-
-
 __all__ = ["K_PRIOR", "DriftJumpEnv", "DriftJumpVectorEnv", "HotCalibrateEnv", "HotCalibrateUnknownKEnv",
-           "HotCalibrateUnknownKVectorEnv", "HotCalibrateVectorEnv", "PinningPrior", "TASKS_V2", "make_env",
-           "make_vector_env", "pinning_of", "set_pinning", "task_config_v2"]
+           "HotCalibrateUnknownKVectorEnv", "HotCalibrateVectorEnv", "PinningPrior", "TASKS_V2", "task_config_v2"]
 
 
 # ---------------------------------------------------------------------------- the floor of the calibration tasks
@@ -607,7 +506,7 @@ def calibration_floor(task: str, n_paths: int | None = None) -> dict:
     config = task_config_v2(task)
     setting = bound_setting(config)
     a_top = float(config.a_of(config.temperature_limit))
-    k_prior = TASKS_V2[task]["k_prior"]
+    k_prior = _spec(task).k_prior
     if n_paths is None:
         n_paths = ENVELOPE_PATHS if k_prior is None else K_ENVELOPE_PATHS
     k_values = [config.hysteresis.k] if k_prior is None else list(np.linspace(k_prior.low, k_prior.high, K_FLOOR_NODES))
@@ -617,19 +516,21 @@ def calibration_floor(task: str, n_paths: int | None = None) -> dict:
     table = tables[0] if len(tables) == 1 else SensitivityTable(
         tables[0].fields, np.max([t.envelope for t in tables], axis=0), max(t.curve_ratio for t in tables),
         max(t.check_ratio for t in tables))
-    first = TASKS_V2[task]["scored_from"]
+    first = _spec(task).scored_from
     floor = {"value": episode_floor(setting, table, first), "kind": "bound",
              "whole_episode": episode_floor(setting, table),
-             "how": f"Van Trees: RMS over steps {first + 1}..{setting.steps} of 1/sqrt(J_prior + I_t), I_t <= G^2 sum Phi^2/sigma^2 (slew-reach "
+             "how": f"Van Trees: RMS over steps {first + 1}..{setting.steps} of 1/sqrt(J_prior + I_t), "
+                    "I_t <= G^2 sum Phi^2/sigma^2 (slew-reach "
                     "envelope of |dM/da|, thermal limit relaxed); envelope from the initial curve and "
                     f"{n_paths} random admissible histories, checked on {n_paths} independent ones",
              "gain_per_Ms": float(setting.gain * config.hysteresis.Ms), "peak_sensitivity": float(table.envelope[-1]),
              "histories_over_initial_curve": table.curve_ratio, "check_ratio": table.check_ratio}
     if k_prior is not None:
-        floor["ignores"] = (f"the uncertainty of k (uniform over {k_prior.low:g}..{k_prior.high:g} A/m): the bound is the "
-                            "k-known one (conditional on k, Van Trees on a alone; knowing k can only help, "
-                            "[J^-1]_aa >= 1/J_aa), with the sensitivity envelope taken as the largest over "
-                            f"k = {', '.join(f'{k:g}' for k in k_values)} A/m (sampled like the histories, not proven between them); "
+        floor["ignores"] = (f"the uncertainty of k (uniform over {k_prior.low:g}..{k_prior.high:g} A/m): "
+                            "the bound is the k-known one (conditional on k, Van Trees on a alone; knowing k can "
+                            "only help, [J^-1]_aa >= 1/J_aa), with the sensitivity envelope taken as the largest over "
+                            f"k = {', '.join(f'{k:g}' for k in k_values)} A/m (sampled like the histories, not "
+                            "proven between them); "
                             "it is looser than a bound with k as a nuisance parameter")
         floor["k_nodes"] = [float(k) for k in k_values]
     return floor

@@ -39,6 +39,8 @@ class HystVectorEnv(VectorEnv):
         ``NEXT_STEP`` (default, as ``SyncVectorEnv``), ``SAME_STEP`` or ``DISABLED``.
     render_mode : {None, "rgb_array"}
         ``"rgb_array"``: ``render()`` returns a tuple with one frame per sub-env.
+    temperature_prior, pinning_prior
+        The episode draws of :class:`~.core.BatchSimulator` (as the single env).
     **overrides
         Fields of :class:`EnvConfig`.
     """
@@ -46,7 +48,8 @@ class HystVectorEnv(VectorEnv):
     mode = EXCITATION
 
     def __init__(self, num_envs: int = 1, config: EnvConfig | None = None, max_episode_steps: int | None = None,
-                 autoreset_mode=AutoresetMode.NEXT_STEP, render_mode: str | None = None, **overrides):
+                 autoreset_mode=AutoresetMode.NEXT_STEP, render_mode: str | None = None,
+                 temperature_prior: str = "uniform", pinning_prior=None, **overrides):
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         self.config = make_config(config, **overrides)
@@ -63,7 +66,8 @@ class HystVectorEnv(VectorEnv):
         self.render_mode = render_mode
         self.num_envs = int(num_envs)
         self.sim = BatchSimulator(self.config, self.mode, self.num_envs, truncation_steps=limit,
-                                  record=render_mode is not None)
+                                  record=render_mode is not None, temperature_prior=temperature_prior,
+                                  pinning_prior=pinning_prior)
         self.single_observation_space = spaces.Box(self.sim.obs_low, self.sim.obs_high, dtype=np.float32)
         self.single_action_space = spaces.Box(-1.0, 1.0, (self.sim.action_size,), dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)

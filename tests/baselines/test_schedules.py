@@ -41,7 +41,10 @@ def test_schroeder_phases_lower_the_crest_factor():
     schroeder = SchroederMultisine(amplitude=1.0, base_frequency=0.25, n_harmonics=8)
     raw = schroeder._raw(t)
     zero_phase = np.sin(2 * np.pi * 0.25 * np.multiply.outer(t, np.arange(1, 9))).sum(-1)
-    crest = lambda x: np.max(np.abs(x)) / np.sqrt(np.mean(x ** 2))
+
+    def crest(x):
+        return np.max(np.abs(x)) / np.sqrt(np.mean(x ** 2))
+
     assert crest(raw) < 0.75 * crest(zero_phase)
 
 

@@ -31,7 +31,10 @@ def test_bootstrap_interval_widens_with_seed_spread():
     draws = rng.normal(size=50)
     tight = np.tile(draws, (5, 1))
     spread = tight + rng.normal(0, 3.0, size=(5, 1))  # one offset per training seed
-    width = lambda s: np.diff(stratified_bootstrap_ci(s, n_boot=500))[0]
+
+    def width(s):
+        return np.diff(stratified_bootstrap_ci(s, n_boot=500))[0]
+
     assert width(spread) > 1.5 * width(tight)
 
 

@@ -29,7 +29,7 @@ def test_make_time_limit_shorter_than_config_truncates_first():
 def test_stroke_violation_terminates_and_costs_the_rest_of_the_episode():
     env = gymnasium.make("hyst_gym/Excitation-v0", stroke_limit=300.0, episode_steps=100, output_noise=0.0)
     env.reset(seed=1)
-    for step in range(1, 101):
+    for step in range(1, 101):  # noqa: B007  (read after the loop: the step of the termination)
         _, reward, terminated, truncated, info = env.step(np.ones(1, dtype=np.float32))
         if terminated:
             break
@@ -45,7 +45,7 @@ def test_over_temperature_terminates():
     env = gymnasium.make("hyst_gym/Estimation-v0", initial_temperature_range=(300.0, 300.0),
                          ambient_drift_rate_range=(20.0, 20.0), temperature_limit=303.0, theta_max=7400.0)
     env.reset(seed=0)
-    for step in range(1, 1001):
+    for _step in range(1, 1001):
         _, _, terminated, truncated, info = env.step(np.zeros(1, dtype=np.float32))
         if terminated or truncated:
             break

@@ -65,7 +65,7 @@ def test_sb3_adapter_semantics():
                             episode_steps=5)
     obs = venv.reset()
     assert obs.shape == (3, 7) and obs.dtype == np.float32
-    for step in range(5):
+    for _step in range(5):
         obs, rewards, dones, infos = venv.step(np.zeros((3, 1), dtype=np.float32))
     assert dones.all()
     for info in infos:

@@ -5,16 +5,53 @@ import numpy as np
 import pytest
 
 import hyst_gym  # noqa: F401
-from hyst_gym.envs.registration import SUITE_V2_IDS
+from hyst_gym.envs.registration import ENV_IDS, SUITE_IDS, SUITE_V2_IDS
 from hyst_gym.envs.suite_v2 import TASKS_V2
+from hyst_gym.envs.tasks import TASKS, env_classes
 
 
 def _vec(task_id, n, **kw):
     return gymnasium.make_vec(task_id, num_envs=n, vectorization_mode="vector_entry_point", **kw)
 
 
+def test_one_id_list_registers_every_task_with_its_kind_s_classes():
+    """The registered suite ids are exactly the TaskSpecs' ids, each made by the classes of its kind."""
+    assert SUITE_IDS + SUITE_V2_IDS == tuple(TASKS) and set(TASKS) <= set(ENV_IDS)
+    for task_id, spec in TASKS.items():
+        single, vector = env_classes(spec.kind)
+        assert type(gymnasium.make(task_id).unwrapped) is single
+        assert type(_vec(task_id, 2).unwrapped) is vector
+        with pytest.raises(TypeError):  # frozen
+            spec.config["dt"] = 1.0
+
+
+def test_the_simulator_draws_the_priors_itself():
+    """The k prior and the start-temperature shape are the simulator's constructor arguments: its own reset
+    (no hook replaced on the instance) draws them, and a grid of start temperatures is one reset option."""
+    from hyst_gym.envs.core import IDENTIFICATION, BatchSimulator
+    from hyst_gym.envs.suite_v2 import K_PRIOR, task_config_v2
+
+    config = task_config_v2("hyst_gym/HotCalibrate-v0")
+    sim = BatchSimulator(config, IDENTIFICATION, 4, temperature_prior="raised_cosine", pinning_prior=K_PRIOR)
+    assert "reset" not in vars(sim)
+    for row in range(4):
+        sim.set_generator(row, np.random.default_rng(row))
+    sim.reset(np.arange(4))
+    assert np.all((sim.pinning >= 320.0) & (sim.pinning <= 480.0)) and np.unique(sim.pinning).size == 4
+    temperatures = np.array([280.0, 290.0, 300.0, 310.0])
+    sim.reset(np.arange(4), {"initial_temperature": temperatures, "pinning_k": 350.0})
+    assert np.array_equal(sim.temperature, temperatures) and np.array_equal(sim.ambient0, temperatures)
+    assert np.allclose(sim.a_true, config.a_of(temperatures)) and np.all(sim.pinning == 350.0)
+    with pytest.raises(ValueError, match="initial_temperature has 2 values for 4 rows"):
+        sim.reset(np.arange(4), {"initial_temperature": temperatures[:2]})
+    plain = BatchSimulator(config, IDENTIFICATION, 1)
+    plain.set_generator(0, np.random.default_rng(0))
+    with pytest.raises(ValueError, match="unknown option"):  # k has no prior there
+        plain.reset([0], {"pinning_k": 350.0})
+
+
 def test_every_task_is_registered_and_documented():
-    assert set(SUITE_V2_IDS) == set(TASKS_V2)
+    assert set(SUITE_V2_IDS) == {spec.id for spec in TASKS_V2}
     for task_id in SUITE_V2_IDS:
         doc = type(gymnasium.make(task_id).unwrapped).__doc__
         for section in ("## Description", "## Action Space", "## Observation Space", "## Rewards",
@@ -80,7 +117,7 @@ def test_bad_jump_option_is_one_error():
     env = gymnasium.make("hyst_gym/DriftJump-v0")
     with pytest.raises(ValueError, match="jump_step"):
         env.reset(seed=0, options={"jump_step": 0.5})
-    with pytest.raises(ValueError, match="unknown suite v2 task"):
+    with pytest.raises(ValueError, match="unknown suite task"):
         gymnasium.make("hyst_gym/DriftJump-v0", task="hyst_gym/Nope-v0")
 
 

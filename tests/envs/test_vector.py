@@ -73,6 +73,6 @@ def test_vector_time_limit_follows_max_episode_steps():
     native = gymnasium.make_vec("hyst_gym/Estimation-v0", num_envs=2, vectorization_mode="vector_entry_point",
                                 max_episode_steps=5)
     native.reset(seed=0)
-    for step in range(5):
+    for _step in range(5):
         _, _, terminated, truncated, _ = native.step(np.zeros((2, 1)))
     assert truncated.all() and not terminated.any()

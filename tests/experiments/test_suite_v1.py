@@ -12,17 +12,26 @@ from gymnasium.utils.env_checker import check_env
 import hyst_gym  # noqa: F401
 from baselines.schedules import Ramp, Sine
 from baselines.suite_agents import Design, DesignBank
-from experiments import suite_v1
+from experiments.suite import common
+from experiments.suite import v1 as suite_v1
+from experiments.suite.kinds import task_kind
 from hyst_gym.envs.registration import SUITE_IDS
-from hyst_gym.envs.suite import SUITE_V1, TASKS, suite_tasks, task_config
+from hyst_gym.envs.suite_v1 import TASKS, suite_tasks, task_config
 
-ROOT = suite_v1.ROOT
+ROOT = common.ROOT
+HOT_COIL = task_kind("hyst_gym/HotCoil-v1")
+
+
+def _estimate_column(config):
+    from hyst_gym.envs.core import EXCITATION, observation_names
+
+    return observation_names(config, EXCITATION).index("a_estimate")
 
 
 def test_every_task_is_a_registered_versioned_id_with_its_preset():
-    assert set(SUITE_IDS) == set(TASKS) and len(SUITE_V1) >= 4
-    assert [spec["difficulty"] for spec in suite_tasks().values()] == sorted(spec["difficulty"]
-                                                                             for spec in SUITE_V1.values())
+    assert set(SUITE_IDS) == set(TASKS) and len(suite_tasks()) >= 4
+    assert [spec.difficulty for spec in suite_tasks().values()] == sorted(spec.difficulty
+                                                                          for spec in suite_tasks().values())
     for task_id in TASKS:
         assert task_id.endswith("-v1")
         env = gymnasium.make(task_id)
@@ -44,20 +53,20 @@ def test_full_excitation_overheats_a_warm_hot_coil_but_not_a_cold_one():
     within the episode, and the metric charges width(Theta) per step after the overheat."""
     config = task_config("hyst_gym/HotCoil-v1")
     hold = Design("hold", Ramp(peak=8.1e4, duration=1.62))
-    warm, _, trace = suite_v1.play(suite_v1.design_agent([hold], config), "hyst_gym/HotCoil-v1", [1],
-                                   options={"initial_temperature": 318.15, "ambient_drift_rate": 0.0},
-                                   keep_trace=True)
+    warm, _, trace = common.play(HOT_COIL.design_agent([hold]), HOT_COIL, [1],
+                                 options={"initial_temperature": 318.15, "ambient_drift_rate": 0.0},
+                                 keep_trace=True)
     ended = np.flatnonzero(np.isnan(trace["temperature"][:, 0]))
     assert ended.size and ended[0] < config.episode_steps
     assert np.nanmax(trace["temperature"]) > config.temperature_limit - 1.0
-    cold, _, _ = suite_v1.play(suite_v1.design_agent([hold], config), "hyst_gym/HotCoil-v1", [1],
-                               options={"initial_temperature": 278.15, "ambient_drift_rate": 0.0})
+    cold, _, _ = common.play(HOT_COIL.design_agent([hold]), HOT_COIL, [1],
+                             options={"initial_temperature": 278.15, "ambient_drift_rate": 0.0})
     assert warm[0] > cold[0] and warm[0] > 0.1 * config.theta_width
 
 
 def test_thermostat_gates_on_the_estimate_and_the_oracle_on_the_truth():
     config = task_config("hyst_gym/HotCoil-v1")
-    index = suite_v1.estimate_index(config)
+    index = _estimate_column(config)
     sine = Sine(amplitude=2e4, frequency=0.25, offset=6e4)
     # margin so large that every temperature counts as hot: always 0
     always_off = DesignBank([Design("off", sine, margin=1e3)], config, index)
@@ -75,7 +84,7 @@ def test_thermostat_gates_on_the_estimate_and_the_oracle_on_the_truth():
 def test_the_identification_gate_idles_once_a_is_identified():
     config = task_config("hyst_gym/HotCoil-v1")
     ramp = Ramp(peak=1e5, duration=1e-3)
-    index = suite_v1.estimate_index(config)
+    index = _estimate_column(config)
     truth = DesignBank([Design("g", ramp, margin=2.0, truth=True, gate=25.0, tail=0.25)], config, index)
     truth.observe({"temperature": np.full(2, 300.0), "a_estimate": np.array([7000.0, 7000.0]),
                    "a_true": np.array([7100.0, 7010.0])})
@@ -134,7 +143,7 @@ def test_bad_benchmark_input_is_one_line_and_status_2():
 def test_the_proportional_rule_scales_the_input_with_the_budget_it_reads():
     config = task_config("hyst_gym/HotCoil-v1")
     ramp = Ramp(peak=1e5, duration=1e-3)  # full field at once (slew-limited to one step)
-    rule = DesignBank([Design("p", ramp, margin=5.0, truth=True, span=20.0)], config, suite_v1.estimate_index(config))
+    rule = DesignBank([Design("p", ramp, margin=5.0, truth=True, span=20.0)], config, _estimate_column(config))
     limit = config.temperature_limit
     rule.observe({"temperature": np.array([limit - 5.0 - 40.0, limit - 5.0 - 10.0, limit - 5.0, limit]),
                   "a_estimate": np.zeros(4), "a_true": np.zeros(4)})

@@ -8,7 +8,10 @@ import argparse
 import numpy as np
 import pytest
 
-from experiments import suite_v2
+from experiments.suite import command
+from experiments.suite import v2 as suite_v2
+from experiments.suite.common import ROOT, play
+from experiments.suite.kinds import task_kind
 
 CALIBRATE = "hyst_gym/HotCalibrate-v0"
 
@@ -75,8 +78,8 @@ def test_flatness_runs_follow_the_profile():
 ])
 def test_bad_arguments_give_one_line_and_status_2(argv, message, capsys):
     parser = argparse.ArgumentParser()
-    suite_v2.configure_parser(parser)
-    assert suite_v2.main(parser.parse_args(argv)) == 2
+    command.configure_parser(parser)
+    assert command.main(parser.parse_args(argv)) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and "\n" not in err
 
@@ -87,7 +90,7 @@ def test_speed_only_rewrites_the_speed_and_keeps_the_rest(tmp_path):
     says where the speed came from."""
     import json
 
-    from experiments.suite_v2 import ROOT, remeasure_speed
+    from experiments.suite.v2 import remeasure_speed
 
     stored = json.loads((ROOT / "experiments" / "results" / "suite_v2_reduced.json").read_text())
     task_id = "hyst_gym/HotCalibrate-v0"
@@ -103,7 +106,8 @@ def test_speed_only_rewrites_the_speed_and_keeps_the_rest(tmp_path):
     for key in kept:
         assert again["tasks"][task_id][key] == stored["tasks"][task_id][key]
     assert again["speed_remeasured"]["command"].endswith("--speed-only") and data == again
-    assert "re-measured by `hyst-gym benchmark --suite v2 --reduced --speed-only`" in path.with_suffix(".md").read_text()
+    table = path.with_suffix(".md").read_text()
+    assert "re-measured by `hyst-gym benchmark --suite v2 --reduced --speed-only`" in table
 
 
 def test_posterior_that_marginalizes_k_beats_the_one_that_assumes_nominal_k():
@@ -119,28 +123,29 @@ def test_posterior_that_marginalizes_k_beats_the_one_that_assumes_nominal_k():
     seeds = [5, 6, 7, 8]
 
     def rms(k_nodes, k):
-        agent = PosteriorCalibration(suite_v2.field_agent(design, task), task, k_nodes=k_nodes,
+        agent = PosteriorCalibration(task_kind(task).field_agent(design), task, k_nodes=k_nodes,
                                      nodes=64 if k_nodes == 1 else None)
-        return float(np.sqrt(suite_v2.play(agent, task, seeds, options={"pinning_k": k})[0].mean()))
+        return float(np.sqrt(play(agent, task_kind(task), seeds, options={"pinning_k": k})[0].mean()))
 
     marginal, nominal = rms(None, 330.0), rms(1, 330.0)
     assert marginal < 15.0 and 3 * marginal < nominal
     assert rms(1, 400.0) < 15.0 and rms(None, 400.0) < 15.0
     with pytest.raises(ValueError, match="k_nodes"):
-        PosteriorCalibration(suite_v2.field_agent(design, CALIBRATE), CALIBRATE, k_nodes=5)
+        PosteriorCalibration(task_kind(CALIBRATE).field_agent(design), CALIBRATE, k_nodes=5)
 
 
 def _stored(task_ids, profile, wall=60.0):
     record = suite_v2.run_record(profile)
     return {"suite": "v2", "profile": profile.name, "package_version": "0", "env_ids": list(task_ids),
-            "tasks": {t: {"description": "old", "difficulty": 9, "family": "old", "agents": {"x": t}} for t in task_ids},
+            "tasks": {t: {"description": "old", "difficulty": 9, "family": "old", "agents": {"x": t}}
+                      for t in task_ids},
             "wall_s": wall, "train_wall_s": 1.0, "speed_remeasured": {"command": "c"}, **record}
 
 
 def test_merge_keeps_the_other_tasks_and_replaces_the_run_s(tmp_path):
     import json
 
-    from hyst_gym.envs.suite_v2 import TASKS_V2
+    from hyst_gym.envs.tasks import suite_ids
 
     profile = suite_v2.PROFILES["reduced"]
     path = tmp_path / "suite_v2_reduced.json"
@@ -149,7 +154,7 @@ def test_merge_keeps_the_other_tasks_and_replaces_the_run_s(tmp_path):
     run = _stored([new, CALIBRATE], profile, wall=30.0)
     run["tasks"][CALIBRATE]["agents"] = {"x": "rerun"}
     merged = suite_v2.merge_stored(run, path)
-    assert merged["env_ids"] == [t for t in TASKS_V2 if t in (new, CALIBRATE, "hyst_gym/DriftJump-v0")]
+    assert merged["env_ids"] == [t for t in suite_ids("v2") if t in (new, CALIBRATE, "hyst_gym/DriftJump-v0")]
     assert merged["tasks"][CALIBRATE]["agents"] == {"x": "rerun"}                     # replaced by the run
     kept = merged["tasks"]["hyst_gym/DriftJump-v0"]
     assert kept["agents"] == {"x": "hyst_gym/DriftJump-v0"} and kept["family"] == "drift events"  # labels refreshed
@@ -165,12 +170,12 @@ def test_k_task_reference_also_plays_the_design_searched_with_k_known():
     """On the k task the inputs without feedback include the direct design searched on its k-known
     sibling (same coil, limits and sensors; k does not enter the heating), played here as an open-loop
     agent; the nominal-k posterior is context, not a candidate reference."""
-    from experiments.suite_v2 import Profile, k_known_sibling, searched_designs
+    from experiments.suite.v2 import Profile, searched_designs
 
-    assert k_known_sibling("hyst_gym/HotCalibrateUnknownK-v0") == "hyst_gym/HotCalibrate-v0"
-    assert k_known_sibling("hyst_gym/HotCalibrate-v0") is None
+    assert task_kind("hyst_gym/HotCalibrateUnknownK-v0").k_known_sibling().id == "hyst_gym/HotCalibrate-v0"
+    assert task_kind("hyst_gym/HotCalibrate-v0").k_known_sibling() is None
     tiny = Profile("test", 2, 2, 2, 2, 0, {}, {}, 10, False)
-    agents, designs = searched_designs("hyst_gym/HotCalibrateUnknownK-v0", tiny, [1000, 1001])
+    agents, designs = searched_designs(task_kind("hyst_gym/HotCalibrateUnknownK-v0"), tiny, [1000, 1001])
     assert agents["direct_design_k_known"][0] == "open_loop" and agents["direct_design_nominal_k"][0] == "estimator"
     assert len(designs["direct_design_k_known_knots"]) == 9
     assert all(scores.shape == (2,) and np.all(scores >= 0) for _, scores in agents.values())
