@@ -320,6 +320,14 @@ class ThermalBudget:
             raise ValueError(f"ThermalBudget: need start_low < start_high < temperature_limit, got "
                              f"{self.start_low!r}, {self.start_high!r}, {self.temperature_limit!r}")
 
+    @classmethod
+    def from_thermal(cls, thermal, dt: float, temperature_limit: float, start_range) -> "ThermalBudget":
+        """From a :class:`~hyst_gym.physics.ThermalParams` (its coil, heat path and a(T)), the control period
+        ``dt`` (s), the ``temperature_limit`` (K) and the start prior's ``(low, high)`` (K)."""
+        return cls(float(dt), float(thermal.thermal_resistance), float(thermal.heat_capacity),
+                   float(thermal.power_per_square_field), float(temperature_limit), float(start_range[0]),
+                   float(start_range[1]), float(thermal.a_reference), float(thermal.reference_temperature))
+
     @property
     def decay(self) -> float:
         """``exp(-dt/(R_th C_th))`` per step."""
@@ -546,7 +554,63 @@ def heated_floor(setting: BoundSetting, ceiling: HeatedCeiling, thermal: Thermal
                        math.sqrt(float(np.mean(1.0 / (prior_fisher + free)))), float(min(margins)))
 
 
-__all__ = ["BoundSetting", "CurrentFieldEnvelope", "HeatedCeiling", "HeatedFloor", "SensitivityTable",
-           "ThermalBudget", "current_field_envelope", "episode_floor", "heated_floor", "heated_information_ceiling",
+#: the piece half widths (K) :func:`calibration_heated_floor` tries (each gives a valid floor; it keeps the highest)
+PIECE_HALF_WIDTHS = (0.5, 1.0, 2.0, 4.0)
+
+
+@dataclass(frozen=True)
+class CalibrationFloor:
+    """What :func:`calibration_heated_floor` returns: ``floor`` (over the scored steps) and ``whole_episode``
+    (over every step), each a :class:`HeatedFloor` at its best piece half width (K, ``piece_half_width``
+    and ``whole_episode_half_width``), with the ``envelope`` and ``ceiling`` they stand on."""
+
+    floor: HeatedFloor
+    piece_half_width: float
+    whole_episode: HeatedFloor
+    whole_episode_half_width: float
+    envelope: CurrentFieldEnvelope
+    ceiling: HeatedCeiling
+
+
+def _best_floor(setting, ceiling, thermal, first_step, overheat_error, half_widths):
+    width = thermal.start_high - thermal.start_low
+    usable = [w for w in half_widths if abs(width / w - round(width / w)) < 1e-9 and round(width / w) >= 2]
+    if not usable:
+        raise ValueError(f"calibration_heated_floor: no piece half width in {half_widths} divides the prior's "
+                         f"width {width:g} K at least twice")
+    floors = [(heated_floor(setting, ceiling, thermal, first_step, overheat_error, w), w) for w in usable]
+    return max(floors, key=lambda pair: pair[0].value)
+
+
+def calibration_heated_floor(params_list, setting: BoundSetting, thermal: ThermalBudget, max_field_step: float,
+                             first_step: int, overheat_error: float, n_paths: int = 256, n_a: int = 5, seed: int = 0,
+                             cells_per_step: int = 2, horizon_stride: int = 5,
+                             half_widths=PIECE_HALF_WIDTHS) -> CalibrationFloor:
+    """The floor of a calibration task with the field, slew and heat limits all kept (module doc).
+
+    ``params_list``: the models the envelope covers (:class:`~hyst_gym.physics.HysteresisParams`; several
+    when a nuisance such as k is unknown: the largest over them); ``setting``: noise, gain, limits and
+    steps (its ``a_lo``/``a_hi`` are not used: the prior is ``thermal``'s); ``max_field_step`` (A/m): the
+    hysteresis substep; ``first_step``: the scored steps are ``first_step + 1 .. setting.steps``;
+    ``overheat_error`` (A/m): the error the metric counts per step after an overheat; ``n_paths``
+    random histories per set and model (seed ``seed``) at ``n_a`` values of a; the ceiling on a grid of
+    ``max_change/cells_per_step`` A/m at every ``horizon_stride``-th step; ``half_widths``: the piece half
+    widths (K) tried, the highest floor kept (each is valid)."""
+    if not 0 <= first_step < setting.steps:
+        raise ValueError(f"calibration_heated_floor: first_step must be in [0, {setting.steps}), got {first_step!r}")
+    a_range = (thermal.a_per_kelvin * thermal.start_low, thermal.a_per_kelvin * thermal.temperature_limit)
+    envelope = current_field_envelope(params_list, a_range, setting.field_limit, setting.max_change, max_field_step,
+                                      setting.max_change / cells_per_step, n_a=n_a, n_paths=n_paths,
+                                      steps=setting.steps, seed=seed)
+    horizons = np.unique(np.append(np.arange(horizon_stride, setting.steps, horizon_stride), setting.steps))
+    ceiling = heated_information_ceiling(envelope, thermal, setting.max_change, horizons, cells_per_step)
+    floor, width = _best_floor(setting, ceiling, thermal, first_step, overheat_error, half_widths)
+    whole, whole_width = _best_floor(setting, ceiling, thermal, 0, overheat_error, half_widths)
+    return CalibrationFloor(floor, width, whole, whole_width, envelope, ceiling)
+
+
+__all__ = ["BoundSetting", "CalibrationFloor", "CurrentFieldEnvelope", "HeatedCeiling", "HeatedFloor",
+           "PIECE_HALF_WIDTHS", "SensitivityTable", "ThermalBudget", "calibration_heated_floor",
+           "current_field_envelope", "episode_floor", "heated_floor", "heated_information_ceiling",
            "information_ceiling", "magnetization_sensitivity", "random_admissible_fields", "raised_cosine_fisher",
            "raised_cosine_quantile", "sensitivity_table", "van_trees_mse"]
