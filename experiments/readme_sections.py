@@ -71,7 +71,9 @@ def section() -> str:
     lines = ["Written by `python -m experiments.readme_sections` from the committed result files; "
              "metric per task (lower is better): IQM over held-out draws, or the RMS over them where the floor is "
              "a Van Trees bound (a bound on a mean square); score = (reference − agent) / "
-             "(reference − floor): 1 reaches the floor, 0 is the best input without feedback. Full tables: "
+             "(reference − floor): 1 reaches the floor, 0 is the best input without feedback, and above 1 beats an "
+             "oracle floor (the best of a fixed family of designs, not a bound). Terms: [glossary](docs/glossary.md); "
+             "full tables: "
              "[docs/results/suite.md](docs/results/suite.md).", "",
              "| task | floor (kind) | reference: best without feedback | best feedback rule | best RL |",
              "|---|---|---|---|---|"]
