@@ -21,14 +21,31 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
                         help="fix the mechanics at the paper's values instead of fitting them "
                              "(lumped: chat, khat; fem: Y, ML, cD, cL)")
     parser.add_argument("--holdout", type=float, default=0.3, help="fraction held out at the end (default 0.3)")
-    parser.add_argument("--json", type=Path, help="write the machine-readable report here")
-    parser.add_argument("--plots", type=Path, help="write PNG plots into this folder")
+    parser.add_argument("--json", type=Path, help="write the machine-readable report here (its folder must exist)")
+    parser.add_argument("--plots", type=Path, help="write PNG plots into this folder (made if its parent exists)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--workers", type=int, default=None,
                         help="threads fitting candidates at once (default: the cores, at most 4)")
 
 
+def check_outputs(args) -> None:
+    """One-line errors, before the diagnosis runs, for output paths it could not write: a ``--json`` file
+    whose folder does not exist (no folders are made for it), a ``--plots`` folder that is a file or
+    whose parent folder does not exist."""
+    if args.json is not None:
+        if args.json.is_dir():
+            raise ValueError(f"--json {args.json}: is a folder; give a file name")
+        if not args.json.parent.is_dir():
+            raise ValueError(f"--json {args.json}: folder {args.json.parent} does not exist")
+    if args.plots is not None:
+        if args.plots.exists() and not args.plots.is_dir():
+            raise ValueError(f"--plots {args.plots}: is a file, not a folder")
+        if not args.plots.parent.is_dir():
+            raise ValueError(f"--plots {args.plots}: folder {args.plots.parent} does not exist")
+
+
 def main(args) -> int:
+    check_outputs(args)
     report = diagnose(args.recording, model=args.model, anhysteretic=args.anhysteretic,
                       fit_mechanics=not args.fix_mechanics, holdout=args.holdout, progress=not args.quiet,
                       workers=args.workers)

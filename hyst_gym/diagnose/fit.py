@@ -32,6 +32,13 @@ FIT_TOLERANCE = 1e-5
 #: The base model's fits keep 1e-8: every candidate is scored against the base, and at 1e-5 one base
 #: fit stopped at 1.30 noise units held out instead of 0.92, which made the candidates look better.
 BASE_FIT_TOLERANCE = 1e-8
+#: Largest |residual| (noise units) and |Jacobian entry| the least-squares solver is shown. Why: at a trial
+#: point where the simulation diverges, residuals of 1e155 noise units square to infinity and the solver's
+#: SVD fails on it ("array must not contain infs or NaNs"); capped, such a point is just a very bad one. A
+#: model within this of the data (every fit that means anything) is untouched.
+RESIDUAL_CAP = 1e100
+#: The residual (noise units) that stands for a non-finite prediction: a large penalty, not a failure.
+NONFINITE_RESIDUAL = 1e6
 
 
 @dataclass
@@ -46,6 +53,7 @@ class FitResult:
     n_free: int
     evaluations: int
     magnetic_values: dict | None = None  # hysteresis fitted to the magnetization channel alone
+    failure: str | None = None   # why the fit failed (None: it did not); then sse is inf
 
     @property
     def bic(self) -> float:
@@ -76,8 +84,10 @@ class Objective:
                 for i, v in enumerate(values_list)]
 
     def __call__(self, x):
-        r = self.residuals_many([self.model.values_from_x(x)])[0]
-        return np.nan_to_num(r, nan=1e6, posinf=1e6, neginf=-1e6)
+        with np.errstate(over="ignore", invalid="ignore"):  # handled: capped below
+            r = self.residuals_many([self.model.values_from_x(x)])[0]
+        r = np.nan_to_num(r, nan=NONFINITE_RESIDUAL, posinf=NONFINITE_RESIDUAL, neginf=-NONFINITE_RESIDUAL)
+        return np.clip(r, -RESIDUAL_CAP, RESIDUAL_CAP)
 
     def jacobian(self, x):
         names = self.model.free_names
@@ -91,12 +101,13 @@ class Objective:
             xi = x.copy()
             xi[i] = np.clip(xi[i] + steps[i], lower[i], upper[i]) if not flip[i] else max(xi[i] + steps[i], lower[i])
             values.append(self.model.values_from_x(xi))
-        res = self.residuals_many(values)
-        base = res[0]
-        J = np.empty((base.size, len(x)))
-        for i in range(len(x)):
-            J[:, i] = (res[i + 1] - base) / steps[i]
-        return np.nan_to_num(J)
+        with np.errstate(over="ignore", invalid="ignore"):  # handled: a non-finite entry is capped below
+            res = self.residuals_many(values)
+            base = res[0]
+            J = np.empty((base.size, len(x)))
+            for i in range(len(x)):
+                J[:, i] = (res[i + 1] - base) / steps[i]
+        return np.clip(np.nan_to_num(J), -RESIDUAL_CAP, RESIDUAL_CAP)
 
 
 def local_fit(model: Model, noise: dict, mask, start: dict | None = None, max_nfev: int = 60,
@@ -117,23 +128,37 @@ def local_fit(model: Model, noise: dict, mask, start: dict | None = None, max_nf
     # keep strictly inside the box (trf requires it); a parameter at 0 with lower bound 0 stays there
     span = upper - lower
     x0 = np.clip(x0, lower + 1e-9 * span, upper - 1e-9 * span)
+    failure = None
     if names:
-        result = scipy.optimize.least_squares(objective, x0, jac=objective.jacobian, bounds=(lower, upper),
-                                              method="trf", x_scale="jac", max_nfev=max_nfev,
-                                              xtol=tolerance, ftol=tolerance)
-        x, residual, J = result.x, result.fun, result.jac
+        try:
+            result = scipy.optimize.least_squares(objective, x0, jac=objective.jacobian, bounds=(lower, upper),
+                                                  method="trf", x_scale="jac", max_nfev=max_nfev,
+                                                  xtol=tolerance, ftol=tolerance)
+            x, residual, J = result.x, result.fun, result.jac
+        except (ValueError, np.linalg.LinAlgError) as error:  # the solver's linear algebra gave up
+            failure = f"the least-squares solver stopped: {str(error).splitlines()[0] if str(error) else error!r}"
+            x, residual, J = x0, objective(x0), np.zeros((objective(x0).size, len(names)))
     else:
         x, residual, J = x0, objective(x0), np.zeros((objective(x0).size, 0))
     fitted = model.values_from_x(x)
-    sse = float(residual @ residual)
+    with np.errstate(over="ignore"):
+        sse = float(residual @ residual)
+    # a residual of exactly NONFINITE_RESIDUAL or at the cap marks a prediction that was not finite
+    if failure is None and (not np.isfinite(sse) or np.any(np.abs(residual) >= RESIDUAL_CAP)
+                            or np.any(np.abs(residual) == NONFINITE_RESIDUAL)):
+        failure = "the model's prediction is not finite at the fit's end (the simulation diverged)"
+    if failure is not None:
+        sse = float("inf")
     uncertainties = _uncertainties(model, names, x, J, sse, residual.size)
     return FitResult(model.with_values(fitted), fitted, uncertainties, sse, residual.size, len(names),
-                     objective.evaluations)
+                     objective.evaluations, failure=failure)
 
 
 def _uncertainties(model, names, x, J, sse, n):
     if not names:
         return {}
+    if not (np.isfinite(sse) and np.all(np.isfinite(J))):
+        return {name: float("nan") for name in names}
     dof = max(n - len(names), 1)
     try:
         cov = np.linalg.pinv(J.T @ J) * (sse / dof)

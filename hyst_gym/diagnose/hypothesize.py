@@ -84,6 +84,8 @@ def calibrate(split: Split, structure: Structure, n_points=128, keep=2, progress
     results = in_threads(lambda start: split.fit(model, start, max_nfev=80, tolerance=BASE_FIT_TOLERANCE),
                          starts, workers)
     best = _first_best(results)
+    if best.failure is not None:
+        raise ValueError(f"{recording.source}: the base model could not be fitted to this recording ({best.failure})")
     if progress is not None:
         progress.update(len(results))
     if both:
@@ -333,11 +335,8 @@ def cross_start(candidates, base_heldout, split: Split, limit: int = 5, workers:
         return split.fit(model, start, max_nfev=40)
 
     for candidate, refit in zip(chosen, in_threads(refitted, chosen, workers)):
-        model = candidate.fit.model
         if refit.sse < candidate.fit.sse:
-            candidate.fit = refit
-            candidate.heldout_rmse, _, candidate.heldout_residual = split.heldout(model, refit.values)
-            candidate.bic = refit.bic
+            candidate.refitted(refit, split)
 
 
 def _resolve_outputs(model, name, values, split: Split):

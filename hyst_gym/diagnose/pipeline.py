@@ -15,6 +15,7 @@ import os
 import time as _time
 from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
@@ -30,6 +31,14 @@ from .priors import pinned_priors, prior_notes, release_prior
 from .recording import Recording, read_recording
 from .report import explain
 from .results import Candidate, Report
+
+#: Largest |value| of any column, in its SI unit: beyond it the record is in the wrong units (no field,
+#: magnetization, displacement or time of a transducer comes near it), and the fit's squares and products
+#: would leave the floating-point range.
+MAX_MAGNITUDE = 1e30
+#: Smallest span of the field and of an output channel, in its SI unit (a displacement of 1e-30 m is far
+#: below any sensor); below it, or below 1e-12 of the channel's magnitude, the channel is constant.
+MIN_SPAN = 1e-30
 
 #: Default number of threads that fit candidates at once: the cores, at most 4 (each thread runs
 #: compiled simulations that release the GIL; beyond the cores, threads only compete).
@@ -68,6 +77,25 @@ def diagnose(recording, model: str = "lumped", anhysteretic: str = "ising", fit_
     with threadpool_limits(limits=1, user_api="blas"):
         return _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, progress,
                          locate_windows, mechanics_tolerance, workers)
+
+
+def check_usable(recording: Recording) -> None:
+    """A one-line ``ValueError`` naming the recording and the column when the tool cannot fit it: values
+    beyond ``MAX_MAGNITUDE`` (wrong units), or a field or output channel that does not vary."""
+    units = {"time": "s", "field": "A/m", "magnetization": "A/m", "displacement": "m"}
+    for name in ("time", "field") + recording.channels:
+        values = getattr(recording, name)
+        peak = float(np.max(np.abs(values)))
+        if peak > MAX_MAGNITUDE:
+            raise ValueError(f"{recording.source}: column '{name}' reaches {peak:.3g} {units[name]}, beyond "
+                             f"{MAX_MAGNITUDE:.0e}: no transducer record comes near it (check the units)")
+        if name == "time":
+            continue
+        span = float(np.ptp(values))
+        if span <= max(MIN_SPAN, 1e-12 * peak):
+            what = "is constant" if span == 0.0 else f"spans only {span:.3g} {units[name]} (constant to the fit)"
+            raise ValueError(f"{recording.source}: column '{name}' {what}, at {float(values[0]):.6g} {units[name]}: "
+                             "the tool needs a field that varies and outputs that respond to it (check the units)")
 
 
 def _effects_to_try(recording, structure, effects):
@@ -117,6 +145,11 @@ def _check_candidates(split, base, base_heldout, candidates):
     return release, released, mechanics_pinned
 
 
+def _failure_notes(candidates) -> list:
+    """One note per candidate that failed (never accepted, so never named), with the reason."""
+    return [f"{c.effect} could not be fitted and was left out ({c.failure})" for c in candidates if c.failure]
+
+
 def _structure_left(split, base, located):
     """The structured part of the base model's held-out residual, and that residual."""
     base_residual = split.heldout(base.model, base.values)[2]
@@ -133,6 +166,7 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
         recording = read_recording(recording)
     if not (0.05 <= holdout <= 0.5):
         raise ValueError(f"holdout must be in [0.05, 0.5], got {holdout!r}")
+    check_usable(recording)
     transducer = model if "displacement" in recording.channels else "none"
     structure = Structure(transducer, anhysteretic, None, fit_mechanics, mechanics_tolerance)
     split = Split.of(recording, holdout)
@@ -176,7 +210,8 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
                     located=located, improvement=float(chosen.improvement) if chosen else 0.0, structure=structure,
                     split_index=split.cut, noise=split.noise, seconds=0.0, chosen=chosen,
                     heldout_by_channel=heldout_by_channel, tied=decision.tied, advice=decision.advice,
-                    notes=decision.notes + notes_on_priors, skipped=skipped, material_structure=structure_left,
+                    notes=decision.notes + notes_on_priors + _failure_notes(candidates), skipped=skipped,
+ material_structure=structure_left,
                     identifiability={"priors": release, "unidentified": directions}, continuum=continuum)
     report.explanation = explain(report)
     report.seconds = _time.perf_counter() - started

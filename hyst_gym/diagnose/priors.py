@@ -42,8 +42,9 @@ def release_prior(base: FitResult, pinned, split: Split, base_heldout) -> tuple[
         params[name] = replace(p, lower=nominal / RELEASED_TOLERANCE, upper=nominal * RELEASED_TOLERANCE)
     model = Model(base.model.recording, base.model.structure, params, base.model.max_field_step)
     released = split.fit(model, base.values, max_nfev=60, tolerance=BASE_FIT_TOLERANCE)
-    heldout = split.heldout(model, released.values)[0]
-    gain = base_heldout ** 2 - heldout ** 2
+    # a released fit that failed (the solver gave up) explains nothing: no gain
+    heldout = split.heldout(model, released.values)[0] if released.failure is None else float("inf")
+    gain = base_heldout ** 2 - heldout ** 2 if np.isfinite(heldout) else float("-inf")
     return {"pinned": {n: base.values[n] for n in pinned}, "released_values": {n: released.values[n] for n in pinned},
             "released_heldout_rmse": heldout, "heldout_mean_square_gain": gain,
             "binds": bool(gain >= MATERIAL_SHARE)}, released

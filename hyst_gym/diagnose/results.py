@@ -25,22 +25,45 @@ class Candidate:
     plausibility: Plausibility = dataclass_field(default_factory=Plausibility)
     #: normalized residual on the held-out block (channels concatenated), for the tie test
     heldout_residual: np.ndarray | None = dataclass_field(default=None, repr=False)
-    #: its mechanics ran into their prior (like the base model's, :func:`_pinned_priors`)
+    #: its mechanics ran into their prior (like the base model's, :func:`.priors.pinned_priors`)
     mechanics_pinned: bool = False
+    #: why it failed (a fit the solver gave up on, a prediction that is not finite); None: it did not.
+    #: A failed candidate has an infinite held-out RMSE and is never accepted.
+    failure: str | None = None
 
     @classmethod
     def fitted(cls, effect: str, fit: FitResult, split: Split) -> "Candidate":
         """A candidate for ``fit`` of ``effect``, with its held-out error; not yet scored against the base
         (improvement 0, not accepted)."""
-        heldout, _, residual = split.heldout(fit.model, fit.values)
-        return cls(effect, fit, heldout, fit.bic, improvement=0.0, accepted=False, heldout_residual=residual)
+        heldout, residual, failure = heldout_or_failure(split, fit)
+        return cls(effect, fit, heldout, fit.bic, improvement=0.0, accepted=False, heldout_residual=residual,
+                   failure=failure)
+
+    def refitted(self, fit: FitResult, split: Split):
+        """Take ``fit`` (a better fit of the same extension) with its held-out error."""
+        self.fit = fit
+        self.heldout_rmse, self.heldout_residual, self.failure = heldout_or_failure(split, fit)
+        self.bic = fit.bic
 
     def to_json(self) -> dict:
         return {"effect": self.effect, "heldout_rmse": self.heldout_rmse, "bic": self.bic,
                 "delta_bic": None, "improvement": self.improvement, "accepted": self.accepted,
                 "plausible": self.plausibility.plausible, "implausible_because": self.plausibility.reasons,
                 "block_values": self.plausibility.block_values,
-                "params": physical_params(self.fit), "uncertainties": self.fit.uncertainties}
+                "params": physical_params(self.fit), "uncertainties": self.fit.uncertainties,
+                "failed": self.failure}
+
+
+def heldout_or_failure(split: Split, fit: FitResult) -> tuple[float, np.ndarray, str | None]:
+    """(held-out RMSE, held-out residual, why it failed or None) of ``fit``: a failed fit, or a prediction
+    of the held-out block that is not finite, gives an infinite RMSE and the reason."""
+    if fit.failure is not None:
+        return float("inf"), None, fit.failure
+    with np.errstate(over="ignore", invalid="ignore"):
+        heldout, _, residual = split.heldout(fit.model, fit.values)
+    if not np.isfinite(heldout):
+        return float("inf"), None, "its prediction of the held-out block is not finite (the simulation diverged)"
+    return heldout, residual, None
 
 
 @dataclass
