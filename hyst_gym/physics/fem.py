@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
-import scipy.optimize
 
 from .linear_system import LINEAR_DRIVE, QUADRATIC_DRIVE, DiscreteTransducer, first_order_hold
 from .transducers import RodParams, _Transducer, check_dt
@@ -143,12 +142,20 @@ class FEMRod(_Transducer):
         return dataclasses.replace(self, **changes)
 
 
-def analytic_frequencies(rod: RodParams = RodParams(), count: int = 3) -> np.ndarray:
+#: the default rod of :func:`analytic_frequencies` (frozen: one shared instance is safe)
+_DEFAULT_ROD = RodParams()
+
+
+def analytic_frequencies(rod: RodParams = _DEFAULT_ROD, count: int = 3) -> np.ndarray:
     """Undamped longitudinal natural frequencies (Hz) of the continuous rod with tip mass.
 
     Modes ``w = sin(beta*x)`` (fixed at x = 0) satisfy the tip balance
     ``Y*A*beta*cos(beta*L) = (ML*omega**2 - kL)*sin(beta*L)``, ``omega = beta*sqrt(Y/rho)``.
     """
+    # imported here, not at the top: scipy.optimize costs about a tenth of a second of every
+    # `import hyst_gym` (and of an env's first step), and only this function needs it
+    import scipy.optimize
+
     c = rod.wave_speed
 
     def residual(beta_l):
