@@ -225,10 +225,10 @@ class CurrentFieldEnvelope:
     """``envelope[i]`` (dimensionless): the largest ``|dM/da|`` found on any history kept under the field
     limit at a moment when its present ``|H| <= fields[i]`` (A/m; ``fields[0] = 0``), over the a range
     (and the k values) it was built for; non-decreasing. ``sampled``: the same from the initial curve
-    and the first set of random histories alone; ``correction_ratio``: the largest ratio of the second,
-    independent set to ``sampled`` in any bin (the envelope is ``sampled`` raised bin by bin to that
-    set, ``corrected_bins`` bins of ``fields.size``); ``residual_ratio``: the largest ratio of a third
-    set to the envelope (<= 1: the check found no history above it)."""
+    and the first set of random histories alone; ``correction_ratio``: the
+    largest factor by which a second, independent set raised a bin of ``sampled``; ``residual_ratio``:
+    the largest factor by which a third set then raised a bin (1: it raised none; the envelope is
+    raised by both, bin by bin: ``corrected_bins`` bins of ``fields.size`` moved above ``sampled``)."""
 
     fields: np.ndarray
     envelope: np.ndarray
@@ -246,14 +246,46 @@ class CurrentFieldEnvelope:
         return self.envelope[np.minimum(np.searchsorted(self.fields, field * (1 - 1e-12)), self.fields.size - 1)]
 
 
-def _current_field_maximum(params_list, a_values, fields, max_change, max_field_step, n_paths, steps, seed):
-    """Per bin i: the largest |dM/da| seen on random admissible histories at moments when the present
-    |H| was in (fields[i-1], fields[i]] (bin 0: H = 0), before the running maximum over bins."""
-    paths = random_admissible_fields(n_paths, steps, max_change, fields[-1], seed)
+def structured_admissible_fields(field_limit: float, max_change: float, steps: int) -> np.ndarray:
+    """Slew-limited fields (A/m), shape (steps, n), from H = 0: to a peak R at the slew limit, back to a level
+    L <= R, then a square dither of amplitude A and period P about L (R, L on tenths of the limit; A of
+    0.04, 0.12, 0.4 and 1 slew step; P of 2, 4 and 8 steps): shapes random histories reach rarely. Not
+    part of the envelope: a dither tuned to a particular a makes ``|dM/da|`` at that a jump for one
+    step (up to about 25 at 20 kA/m on the hot coil, over a window of a few A/m of a; a near-switch of
+    model (6)'s irreversible branch); see the caveat of :func:`calibration_heated_floor`."""
+    paths = []
+    tenths = field_limit * np.arange(1, 11) / 10
+    for peak in tenths:
+        for level in tenths[tenths <= peak]:
+            for amplitude in (0.04, 0.12, 0.4, 1.0):
+                for period in (2, 4, 8):
+                    current, phase, dither_start = 0.0, "up", 0
+                    field = np.empty(steps)
+                    for t in range(steps):
+                        if phase == "up" and current >= peak:
+                            phase = "down"
+                        if phase == "down" and abs(current - level) < 1e-9 * field_limit:
+                            phase, dither_start = "dither", t
+                        if phase == "up":
+                            target = peak
+                        elif phase == "down":
+                            target = level
+                        else:
+                            sign = 1.0 if ((t - dither_start) // (period // 2)) % 2 == 0 else -1.0
+                            target = min(level + sign * amplitude * max_change, field_limit)
+                        current += float(np.clip(target - current, -max_change, max_change))
+                        field[t] = current
+                    paths.append(field)
+    return np.array(paths).T
+
+
+def _fields_maximum(params_list, a_values, fields, max_field_step, paths):
+    """Per bin i: the largest |dM/da| seen on ``paths`` (steps, n) at moments when the present |H| was in
+    (fields[i-1], fields[i]] (bin 0: H = 0), before the running maximum over bins."""
     bins = np.minimum(np.searchsorted(fields, np.abs(paths)), fields.shape[0] - 1)
     found = np.zeros(fields.shape[0])
     for params in params_list:
-        for path in range(n_paths):
+        for path in range(paths.shape[1]):
             seen = magnetization_sensitivity(paths[:, path], a_values, params, max_field_step).max(axis=1)
             np.maximum.at(found, bins[:, path], seen)
     return found
@@ -265,8 +297,10 @@ def current_field_envelope(params_list, a_range, field_limit: float, max_change:
     """The current-field envelope (module doc, point 1) of the models ``params_list`` (a list of
     :class:`~hyst_gym.physics.HysteresisParams`, e.g. several k) for a in ``a_range`` (A/m, ``n_a``
     values), on bins every ``field_step`` A/m up to ``field_limit``: the initial curve and ``n_paths``
-    random slew-limited histories of ``steps`` steps (``max_change`` A/m per step, seed ``seed``), raised bin
-    by bin to ``n_paths`` histories of seed ``seed + 1``, checked on ``n_paths`` of seed ``seed + 2``."""
+    random slew-limited histories of
+    ``steps`` steps (``max_change`` A/m per step, seed ``seed``), then raised bin by bin to ``n_paths``
+    histories of seed ``seed + 1`` (``correction_ratio``) and again to ``n_paths`` of seed ``seed + 2``
+    (``residual_ratio``: how far sampling still moved it)."""
     if not (field_step > 0 and field_limit > 0):
         raise ValueError(f"current_field_envelope: field_step and field_limit must be > 0, got {field_step!r}, "
                          f"{field_limit!r}")
@@ -277,15 +311,17 @@ def current_field_envelope(params_list, a_range, field_limit: float, max_change:
     for params in params_list:
         curve[1:] = np.maximum(curve[1:], magnetization_sensitivity(fields[1:], a_values, params,
                                                                     max_field_step).max(axis=1))
-    args = (params_list, a_values, fields, max_change, max_field_step, n_paths, steps)
-    sampled = np.maximum.accumulate(np.maximum(curve, _current_field_maximum(*args, seed)))
-    second = np.maximum.accumulate(_current_field_maximum(*args, seed + 1))
-    envelope = np.maximum(sampled, second)
-    third = np.maximum.accumulate(_current_field_maximum(*args, seed + 2))
-    positive = sampled > 0
-    correction = float(np.max(second[positive] / sampled[positive])) if positive.any() else 1.0
-    residual = float(np.max(third[envelope > 0] / envelope[envelope > 0]))
-    return CurrentFieldEnvelope(fields, envelope, sampled, correction, int(np.sum(second > sampled)), residual)
+
+    def sampled_set(set_seed):
+        paths = random_admissible_fields(n_paths, steps, max_change, field_limit, set_seed)
+        return np.maximum.accumulate(_fields_maximum(params_list, a_values, fields, max_field_step, paths))
+
+    sampled = np.maximum.accumulate(np.maximum(curve, sampled_set(seed)))
+    corrected = np.maximum(sampled, sampled_set(seed + 1))
+    envelope = np.maximum(corrected, sampled_set(seed + 2))
+    correction = float(np.max(corrected[sampled > 0] / sampled[sampled > 0]))
+    residual = float(np.max(envelope[corrected > 0] / corrected[corrected > 0]))
+    return CurrentFieldEnvelope(fields, envelope, sampled, correction, int(np.sum(envelope > sampled)), residual)
 
 
 @dataclass(frozen=True)
@@ -584,7 +620,7 @@ def _best_floor(setting, ceiling, thermal, first_step, overheat_error, half_widt
 
 def calibration_heated_floor(params_list, setting: BoundSetting, thermal: ThermalBudget, max_field_step: float,
                              first_step: int, overheat_error: float, n_paths: int = 256, n_a: int = 5, seed: int = 0,
-                             cells_per_step: int = 2, horizon_stride: int = 5,
+                             cells_per_step: int = 4, horizon_stride: int = 5,
                              half_widths=PIECE_HALF_WIDTHS) -> CalibrationFloor:
     """The floor of a calibration task with the field, slew and heat limits all kept (module doc).
 
@@ -595,7 +631,13 @@ def calibration_heated_floor(params_list, setting: BoundSetting, thermal: Therma
     ``overheat_error`` (A/m): the error the metric counts per step after an overheat; ``n_paths``
     random histories per set and model (seed ``seed``) at ``n_a`` values of a; the ceiling on a grid of
     ``max_change/cells_per_step`` A/m at every ``horizon_stride``-th step; ``half_widths``: the piece half
-    widths (K) tried, the highest floor kept (each is valid)."""
+    widths (K) tried, the highest floor kept (each is valid).
+
+    Caveat (what the envelope, being sampled at ``n_a`` values of a, does not hold): a small dither about
+    a level, tuned to the true a to within a few A/m, can make ``|dM/da|`` jump for one step near a switch
+    of model (6)'s irreversible branch (:func:`structured_admissible_fields`); an input that knew a that
+    well and produced such steps over and over could collect more than the ceiling. No agent of the suite
+    does; a bound that admits them would need the prior-averaged, not the pointwise, sensitivity."""
     if not 0 <= first_step < setting.steps:
         raise ValueError(f"calibration_heated_floor: first_step must be in [0, {setting.steps}), got {first_step!r}")
     a_range = (thermal.a_per_kelvin * thermal.start_low, thermal.a_per_kelvin * thermal.temperature_limit)
@@ -613,4 +655,4 @@ __all__ = ["BoundSetting", "CalibrationFloor", "CurrentFieldEnvelope", "HeatedCe
            "PIECE_HALF_WIDTHS", "SensitivityTable", "ThermalBudget", "calibration_heated_floor",
            "current_field_envelope", "episode_floor", "heated_floor", "heated_information_ceiling",
            "information_ceiling", "magnetization_sensitivity", "random_admissible_fields", "raised_cosine_fisher",
-           "raised_cosine_quantile", "sensitivity_table", "van_trees_mse"]
+           "raised_cosine_quantile", "sensitivity_table", "structured_admissible_fields", "van_trees_mse"]
