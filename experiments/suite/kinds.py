@@ -75,6 +75,10 @@ class TaskKind:
         """The agent that plays ``designs`` (one per sub-env, or one everywhere) on the task."""
         return self.field_agent(designs)
 
+    def reference_agents(self, tuning, heldout, log=print) -> tuple:
+        """The kind's simple references ({name: (kind, held-out scores)}, {name: tuned choice}); none here."""
+        return {}, {}
+
     def context_agents(self, tuned_open_loop, heldout) -> dict:
         """Agents reported for context (kind ``estimator``): the env's estimator swapped, under the tuned input."""
         return {name: ("estimator", common.play(self.design_agent([tuned_open_loop]), self, heldout,
@@ -97,10 +101,15 @@ class JumpTask(TaskKind):
                 "jump_change": float(draws["jump_change"][j])}
 
 
+#: the references' settings tuned on the tuning draws: ramp-and-hold peaks (A/m), bang-hold margins (K)
+RAMP_HOLD_PEAKS = (4.0e4, 6.0e4, 8.0e4, 1.0e5)
+BANG_HOLD_MARGINS = (1.0, 2.0, 5.0)
+
+
 class CalibrateTask(TaskKind):
-    """The calibration tasks: the agent reports a; every non-RL agent reports the grid-posterior estimate
-    (:class:`baselines.calibration_agents.PosteriorCalibration`); metric: the mean square error over the
-    scored steps, RMS over draws; floor: a Van Trees bound."""
+    """The calibration tasks: the agent designs the field and the task's env runs its estimator (the grid
+    posterior, :class:`hyst_gym.envs.posterior.GridPosterior`) in the loop, so every agent plays with the same
+    estimator; metric: the mean square error over the scored steps, RMS over draws; floor: a Van Trees bound."""
 
     statistic_name = "rms"
     power = 2
@@ -123,11 +132,37 @@ class CalibrateTask(TaskKind):
         """Without the designs that read the truth or the min-max estimator's tuning error (there is none)."""
         return [d for d in common.design_family() if not d.truth and d.gate is None]
 
-    def design_agent(self, designs):
-        from baselines.calibration_agents import PosteriorCalibration
+    def reference_agents(self, tuning, heldout, log=print) -> tuple:
+        """The worst-case-safe ramp-and-hold (open loop, its peak tuned) and the bang-hold rule (feedback, its
+        margin tuned) of :mod:`baselines.references`, each best of its settings on the tuning draws."""
+        import gymnasium
 
-        agent = self.field_agent(designs)
-        return PosteriorCalibration(agent, self.id, name=agent.name)
+        import hyst_gym  # noqa: F401
+        from baselines.references import BangHold, ramp_hold
+        from baselines.suite_agents import Design
+
+        names = gymnasium.make(self.id).unwrapped.observation_names
+        column, spread = names.index("a_estimate"), names.index("estimate_spread")
+        ramps = {}
+        for peak in RAMP_HOLD_PEAKS:
+            try:
+                ramps[f"ramp_hold_{peak:g}"] = self.design_agent([Design(f"ramp_hold_{peak:g}",
+                                                                         ramp_hold(self.config, peak))])
+            except ValueError as error:  # a peak the hottest start cannot afford at all is not a candidate
+                log(f"[suite v2] {self.id}: ramp_hold skips {peak:g} A/m: {error}")
+        candidates = {"ramp_hold": ("open_loop", ramps),
+                      "bang_hold": ("feedback", {f"bang_hold_{margin:g}": BangHold(self.config, column, margin,
+                                                                                      spread_index=spread)
+                                                 for margin in BANG_HOLD_MARGINS})}
+        agents, tuned = {}, {}
+        for name, (kind, options) in candidates.items():
+            scores = {label: self.statistic(common.play(agent, self, tuning)[0][None, :])
+                      for label, agent in options.items()}
+            best = min(scores, key=scores.get)
+            agents[name] = (kind, common.play(options[best], self, heldout)[0])
+            tuned[name] = best
+        log(f"[suite v2] {self.id}: references {tuned}")
+        return agents, tuned
 
     def k_known_sibling(self) -> CalibrateTask | None:
         """The task with the same plant, limits and sensors but k known, for a task with a k prior (else None)."""

@@ -4,13 +4,13 @@
     python -m experiments.suite --suite v2 [same options]
     hyst-gym benchmark [--suite v1] ...      # suite v1 (the sanity tier): experiments.suite.v1
 
-Tasks (:mod:`hyst_gym.envs.suite_v2`): four calibration tasks (the agent drives the coil and reports
-a every step; floor: a Van Trees **bound**, :mod:`hyst_gym.estimation.information_bound`; in
-``HotCalibrateUnknownK-v0`` the pinning constant k is unknown too and the bound is the k-known one,
-which ignores the k uncertainty) and a drift-jump task (the built-in min-max estimator identifies a,
-which jumps at an unknown time; floor: an **oracle**, as in v1). All agents play the task's native
-vector env on the same draws (tuning :data:`~baselines.scenarios.TUNING_SEEDS`, held-out
-:data:`~baselines.scenarios.HELDOUT_SEEDS`).
+Tasks (:mod:`hyst_gym.envs.suite_v2`): four calibration tasks (the agent drives the coil; the task's
+env runs its estimator, the grid posterior, in the loop and scores its estimate; floor: a Van Trees
+**bound**, :mod:`hyst_gym.estimation.information_bound`; in ``HotCalibrateUnknownK-v0`` the pinning
+constant k is unknown too and the bound is the k-known one, which ignores the k uncertainty) and a
+drift-jump task (the built-in min-max estimator identifies a, which jumps at an unknown time; floor: an
+**oracle**, as in v1). All agents play the task's native vector env on the same draws (tuning
+:data:`~baselines.scenarios.TUNING_SEEDS`, held-out :data:`~baselines.scenarios.HELDOUT_SEEDS`).
 
 Metrics (lower is better; width(Theta) counted per step after an overheat, as the env's reward):
 
@@ -27,13 +27,14 @@ also ``direct_design_k_known`` (the same search on the k-known sibling task, pla
 ``feedback``: ``thermostat``, ``proportional`` (the thermal budget read from the estimate), and on
 the jump task ``identify_then_idle`` (excite while the estimator's tuning error says it is not
 tuned); ``estimator`` (jump task, context): the gradient and multiple-model estimators under the
-tuned input; ``rl``: PPO, SAC, RecurrentPPO (:mod:`baselines.train`, dense env reward). In the
-calibration tasks every non-RL agent reports the grid-posterior (Bayes) estimate of
-:class:`baselines.calibration_agents.PosteriorCalibration` (on the k task a (T0, k) grid that
-marginalizes k; ``direct_design_nominal_k``, kind ``estimator``, context: the direct design with a
-posterior that assumes the nominal k); RL reports its own.
+tuned input; ``rl``: PPO, SAC, RecurrentPPO (:mod:`baselines.train`, dense env reward). On the calibration
+tasks also the references of :mod:`baselines.references`: ``ramp_hold`` (open loop, worst-case-safe, its
+peak tuned) and ``bang_hold`` (feedback, its margin tuned). Every agent of a calibration task plays with
+the env's estimator (:class:`hyst_gym.envs.posterior.GridPosterior`; on the k task a (T0, k) grid that
+marginalizes k), RL included; ``direct_design_nominal_k`` (kind ``estimator``, context) plays the
+agent-reports track (``reporter="agent"``) with a posterior that assumes the nominal k.
 
-Headroom: ``reference/floor - 1`` (reference: the best ``open_loop`` agent), 95 % bootstrap CI over
+Headroom: ``(reference - floor)/floor`` (reference: the best ``open_loop`` agent), 95 % bootstrap CI over
 the draws; a task enters the suite when the CI lies above 25 %. Normalized score:
 ``(reference - agent)/(reference - floor)``. RL gap: a task counts for issue 23 when the best RL
 agent's normalized score has its CI below 0.7 (it leaves at least 30 % of the gap).
@@ -176,7 +177,9 @@ def searched_designs(task, profile: Profile, heldout):
 
         nominal = PosteriorCalibration(task.field_agent([Design("direct_design", direct)]), task.id,
                                        name="direct_design_nominal_k", k_nodes=1, nodes=POSTERIOR_NODES)
-        agents["direct_design_nominal_k"] = ("estimator", common.play(nominal, task, heldout)[0])
+        # on the agent-reports track: this agent reports its own (misspecified) posterior's estimate
+        agents["direct_design_nominal_k"] = ("estimator", common.play(nominal, task, heldout,
+                                                                      overrides={"reporter": "agent"})[0])
     return agents, designs
 
 
@@ -267,12 +270,15 @@ def floor_of(task, family, held_scores, draws, heldout) -> dict:
 
 def evaluate_task(task_id: str, profile: Profile, raw: pathlib.Path = RAW, log=print) -> dict:
     """Every agent's per-draw metric on the held-out draws, the floor, and the tuning choices."""
-    from baselines.scenarios import HELDOUT_SEEDS
+    from baselines.scenarios import HELDOUT_SEEDS, TUNING_SEEDS
 
     start = time.time()
     task = task_kind(task_id)
     heldout = HELDOUT_SEEDS[:profile.heldout]
     agents, tuned, family, held_scores, draws = tuned_agents(task, profile, log)
+    references, reference_choice = task.reference_agents(TUNING_SEEDS[:profile.tuning], heldout, log)
+    agents.update(references)
+    tuned.update(reference_choice)
     floor = floor_of(task, family, held_scores, draws, heldout)
     searched, designs = searched_designs(task, profile, heldout)
     agents.update(searched)
@@ -362,10 +368,10 @@ def sanity_tier(results: pathlib.Path = RESULTS) -> list:
 
 # ---------------------------------------------------------------------------- report
 
-AGENT_ORDER = ("ramp", "tuned_open_loop", "optimal_design_prior", "direct_design", "direct_design_k_known",
-               "direct_design_nominal_k",
+AGENT_ORDER = ("ramp", "tuned_open_loop", "ramp_hold", "optimal_design_prior", "direct_design",
+               "direct_design_k_known", "direct_design_nominal_k",
                "gradient", "multiple_model",
-               "thermostat", "proportional", "identify_then_idle", "ppo", "ppo_x3", "sac", "recurrent_ppo")
+               "thermostat", "proportional", "bang_hold", "identify_then_idle", "ppo", "ppo_x3", "sac", "recurrent_ppo")
 
 
 def _cell(entry, statistic):

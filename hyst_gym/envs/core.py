@@ -142,6 +142,7 @@ OBSERVATION_DOCS = {
     "curvature_sign": "±1: sign of the output's curvature in a at the current estimate",
     "minmax_gap": "min-max gap nu* as log1p(nu*)/log1p(2 Ms) (nu* in A/m)",
     "previous_estimate": "the agent's previous estimate of a, mapped from Theta onto [-1, 1]",
+    "estimate_spread": "built-in estimator's uncertainty of a: posterior standard deviation / width(Theta), in [0, 1]",
     "temperature": "measured coil temperature (T − T_ref)/10 K (with temperature_sensor=True)",
 }
 

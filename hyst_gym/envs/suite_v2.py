@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from .core import PINNING_OPTION as CORE_PINNING_OPTION
+from .posterior import GridPosterior
 from .single import ExcitationEnv, IdentificationEnv
 from .suite_v1 import COMMON, ENV_KEYWORDS, HOT_THERMAL
 from .task_spec import PinningPrior, TaskSpec
@@ -104,16 +105,66 @@ def task_config_v2(task: str, **overrides):
 PINNING_OPTION = CORE_PINNING_OPTION
 
 
-class _Calibrate:
-    """Shared by the single and the vector calibration env: the sensor selection (observation columns
-    kept). The simulator draws the start temperature and, where the task has one, k from the task's priors."""
+#: who reports the estimate of a in a calibration task: the task's estimator (the grid posterior,
+#: :class:`~hyst_gym.envs.posterior.GridPosterior`; the agent drives the field only) or the agent itself
+#: (the agent-reports track: the action is (field, estimate))
+REPORTERS = ("estimator", "agent")
 
-    def _setup_calibrate(self, hidden, k_prior=None):
-        self.k_prior = k_prior
+
+def scored_reward(error, terminated, steps_done, scored_from: int, total: int, width: float, power: int):
+    """The dense reward whose episode sum is minus the task metric in units of width(Theta)**power: per step
+    t (0-based, ``steps_done = t + 1``) in the scored window ``t >= scored_from``, ``-(error/width)**power/N``
+    (N = total - scored_from scored steps); at an overheat (``terminated``) also ``-1/N`` for every scored step
+    after t (the metric counts width(Theta) for each)."""
+    steps_done = np.asarray(steps_done)
+    in_window = steps_done - 1 >= scored_from
+    reward = -np.where(in_window, (np.asarray(error) / width) ** power, 0.0)
+    remaining = total - np.maximum(steps_done, scored_from)
+    reward = reward - np.where(terminated, remaining, 0)
+    return reward / (total - scored_from)
+
+
+class _Scored:
+    """The scored reward (:func:`scored_reward`) of a task; ``_elapsed`` counts each sub-env's steps."""
+
+    def _setup_scored(self, spec, power: int, n: int):
+        self.scored_from = spec.scored_from
+        self._power = power
+        self._elapsed = np.zeros(n, dtype=np.int64)
+
+    def _scored(self, error, terminated):
+        config = self.config
+        self._elapsed += 1
+        return scored_reward(error, terminated, self._elapsed, self.scored_from, config.episode_steps,
+                             config.theta_width, self._power)
+
+
+class _Calibrate(_Scored):
+    """Shared by the single and the vector calibration env: the sensor selection (observation columns
+    kept), the reporter (the grid posterior in the loop, or the agent) and the scored reward. The simulator
+    draws the start temperature and, where the task has one, k from the task's priors."""
+
+    def _setup_calibrate(self, spec, reporter: str, n: int, posterior_nodes):
+        if reporter not in REPORTERS:
+            raise ValueError(f"reporter must be one of {REPORTERS}, got {reporter!r}")
+        self.reporter = reporter
+        self.k_prior = spec.k_prior
+        self._setup_scored(spec, 2, n)
+        hidden = spec.sensors_hidden
         names = self.sim.obs_names
-        self._keep = np.array([i for i, name in enumerate(names) if name not in (hidden or ())])
-        self.kept_names = [names[i] for i in self._keep]
+        self._keep = np.array([i for i, name in enumerate(names) if name not in hidden])
+        kept = [names[i] for i in self._keep]
         low, high = self.sim.obs_low[self._keep], self.sim.obs_high[self._keep]
+        outputs = ["displacement", "velocity"] if self.config.is_mechanical else ["output"]
+        self._channels = [i for i, name in enumerate(outputs) if name not in hidden]
+        self.posterior = None
+        if reporter == "estimator":
+            self.posterior = GridPosterior(self.config, self._channels, n, spec.k_prior, posterior_nodes)
+            kept = ["a_estimate" if name == "previous_estimate" else name for name in kept] + ["estimate_spread"]
+            low, high = np.append(low, np.float32(0.0)), np.append(high, np.float32(1.0))
+            self._measured = np.zeros((n, len(self._channels)))
+            self._fresh = np.ones(n, dtype=bool)
+        self.kept_names = kept
         return low, high
 
     @property
@@ -121,22 +172,62 @@ class _Calibrate:
         """The pinning constant k of each sub-env's episode (A/m; the preset's k where the task has no prior)."""
         return self.sim.pinning
 
+    def _restart(self, rows) -> None:
+        """Sub-envs ``rows`` start new episodes: their step count and (in the loop) their posterior."""
+        self._elapsed[rows] = 0
+        if self.posterior is not None:
+            self.posterior.restart(rows)
+            self._fresh[rows] = True
+
+    def _full_action(self, actions: np.ndarray, skip=None) -> np.ndarray:
+        """The simulator's (field, estimate) actions: the agent's own, or its field with the grid posterior's
+        estimate (updated with the last measured outputs, stepped with this field; ``skip``: rows whose
+        action the vector env ignores). The estimate goes through the action's float32, as an agent's would."""
+        if self.posterior is None:
+            return actions
+        field = np.asarray(actions, dtype=np.float32).astype(np.float64)[:, 0]
+        going = ~self._fresh if skip is None else ~self._fresh & ~skip
+        if going.any():
+            self.posterior.update(self._measured, np.flatnonzero(going))
+        self._fresh[:] = False
+        self.posterior.step(field)
+        config = self.config
+        normalized = 2.0 * (self.posterior.estimate() - config.theta_min) / config.theta_width - 1.0
+        return np.stack([field, np.clip(normalized, -1.0, 1.0)], axis=1).astype(np.float32)
+
+    def _spread(self) -> np.ndarray:
+        """The estimator's spread per sub-env: posterior standard deviation of a / width(Theta), in [0, 1]."""
+        return np.clip(self.posterior.spread() / self.config.theta_width, 0.0, 1.0)
+
+    def _observation(self, full: np.ndarray) -> np.ndarray:
+        """The agent's observation rows from the simulator's: the task's sensors, and (in the loop) the
+        estimator's estimate (in place of the reported one) and its spread (std of a / width(Theta))."""
+        observation = full[:, self._keep]
+        if self.posterior is None:
+            return observation
+        self._measured = observation[:, :len(self._channels)].astype(np.float64)
+        return np.concatenate([observation, self._spread()[:, None].astype(np.float32)], axis=1)
+
 
 class HotCalibrateEnv(_Calibrate, IdentificationEnv):
     """``hyst_gym/HotCalibrate-v0`` (also ``HotCalibrateNoisy-v0``, ``DisplacementOnly-v0``).
 
     ## Description
     A milling actuator's small, lightly cooled coil (C_th 5 J/K, R_th 4 K/W) must be calibrated
-    before a job: the agent drives the coil field and reports its estimate of the anhysteretic
-    parameter a every step. a follows the coil temperature (eq. (4), about 24 A/m per K); the start
-    temperature is unknown (a raised-cosine prior over 5..45 C), the ambient equals it and does not
-    drift, and Joule heating ``R*(H/n)**2`` heats the coil by about 13 K/s at 81 kA/m, so a warm
-    coil affords about a second of full excitation. The floor is a Van Trees bound on the RMS error
-    of any estimate under any admissible input (``experiments/suite/v2.py``).
+    before a job: the agent designs the coil field H(t) and the task's estimator identifies the
+    anhysteretic parameter a from what that input reveals. a follows the coil temperature (eq. (4),
+    about 24 A/m per K); the start temperature is unknown (a raised-cosine prior over 5..45 C), the
+    ambient equals it and does not drift, and Joule heating ``R*(H/n)**2`` heats the coil by about
+    13 K/s at 81 kA/m, so a warm coil affords about a second of full excitation. The estimator is the
+    grid posterior over the start temperature (:class:`~hyst_gym.envs.posterior.GridPosterior`, the
+    Bayes estimate: the posterior mean, the parabola vertex once one node holds most of the mass); every
+    agent plays with it, so agents differ only in the input they design. The floor is a Van Trees bound
+    on the RMS error of any estimate under any admissible input (``experiments/suite/v2.py``).
 
     ## Action Space
-    ``Box(-1, 1, (2,))``: (field command / field_limit (1e5 A/m); the applied field moves towards it by
-    at most 2500 A/m per step), (estimate of a mapped onto Theta = [6500, 8100] A/m).
+    ``Box(-1, 1, (1,))``: field command / field_limit (1e5 A/m); the applied field moves towards it by at
+    most 2500 A/m per step. With ``reporter="agent"`` (the agent-reports track): ``Box(-1, 1, (2,))``,
+    (field command, the agent's estimate of a mapped onto Theta = [6500, 8100] A/m).
 
     ## Observation Space
     ``Box(float32)``, normalized, clipped to the bounds:
@@ -147,43 +238,52 @@ class HotCalibrateEnv(_Calibrate, IdentificationEnv):
     | 1 | velocity (HotCalibrate on the lumped transducer only; hidden in DisplacementOnly) | -2 | 2 | v / (x(Ms) w1) |
     | next | field | -1 | 1 | H / 1e5 A/m |
     | next | elapsed | 0 | 1 | step / 200 |
-    | next | previous_estimate | -1 | 1 | the last reported estimate mapped from Theta |
+    | next | a_estimate | -1 | 1 | the estimator's estimate of a (the one scored), mapped from Theta |
+    | next | estimate_spread | 0 | 1 | its posterior standard deviation / width(Theta) |
 
-    Measurement noise: ``output_noise`` (1e-4; 1e-3 in the noisy and displacement-only tasks) times each
-    output's scale, Gaussian, per step.
+    With ``reporter="agent"``: ``previous_estimate`` (the agent's last reported estimate) in place of
+    ``a_estimate``, and no ``estimate_spread``. Measurement noise: ``output_noise`` (1e-4; 1e-3 in the noisy
+    and displacement-only tasks) times each output's scale, Gaussian, per step.
 
     ## Rewards
-    ``-|a_estimate - a_true| / width(Theta)`` per step, minus the soft temperature penalty within 5 K of the
-    limit; on an overheat, minus the remaining steps. The suite's metric is the RMS of
-    ``a_estimate - a_true`` (A/m) over the second half of the episode (steps 101..200: a 5 s warm-up,
-    then the milling job, which needs a from its start), counting width(Theta) per step after an overheat.
-    Over the whole episode the first steps, limited by the slew rate and the prior, dominate, and a
-    tuned open-loop input with a Bayes estimate comes within about 10 % of the bound.
+    The reward sums to minus the task's score: per step of the scored window (steps 101..200: a 5 s
+    warm-up, then the milling job, which needs a from its start) ``-((a_estimate - a_true)/width(Theta))**2/100``,
+    0 before it; at an overheat also ``-1/100`` for every scored step left (the metric counts width(Theta)
+    for each). So the episode's return times width(Theta)**2 is minus the mean square error over the scored
+    steps, the per-draw score whose RMS over draws is the suite's metric (A/m).
 
     ## Starting State
     Field 0, M = 0, coil at ``T0 = 278.15 + 40*Q(u)`` K (Q the raised-cosine quantile, u uniform from the
-    env's seeded generator), a = 7012*T0/293.15 A/m.
+    env's seeded generator), a = 7012*T0/293.15 A/m. The estimator starts from its prior; the observation's
+    estimate before the first step is the preset's ``initial_estimate`` (7300 A/m).
 
     ## Episode End
     ``terminated``: the coil passes 333.15 K (60 C). ``truncated``: 200 steps (10 s at dt = 0.05 s).
 
     ## Arguments
-    ``gymnasium.make(id, **overrides)``: any :class:`~hyst_gym.envs.config.EnvConfig` field on top of the
-    preset. Reset options as :class:`~hyst_gym.envs.single.HystEnv` (``initial_temperature`` bypasses the
-    prior).
+    ``gymnasium.make(id, reporter="estimator", posterior_nodes=None, **overrides)``: ``reporter``: ``"estimator"``
+    (default) or ``"agent"`` (the agent-reports track); ``posterior_nodes``: T0 grid nodes of the estimator
+    (default 64, 24 with a k grid of 9 on the k task); any :class:`~hyst_gym.envs.config.EnvConfig` field on
+    top of the preset. Reset options as :class:`~hyst_gym.envs.single.HystEnv` (``initial_temperature``
+    bypasses the prior).
 
     ## Version History
-    * v0: first version (suite v2, issue 23).
+    * v0: first version (suite v2): the agent reported a; then the estimator in the loop (the action is the
+      field only, the observation holds the estimator's estimate and spread) and the reward that sums to the
+      score, with the agent-reports track kept as ``reporter="agent"``.
     """
 
-    def __init__(self, task: str = "hyst_gym/HotCalibrate-v0", render_mode=None, **overrides):
+    def __init__(self, task: str = "hyst_gym/HotCalibrate-v0", render_mode=None, reporter: str = "estimator",
+                 posterior_nodes: int | None = None, **overrides):
         spec = _spec(task, "calibrate")
         super().__init__(spec.env_config(**overrides), render_mode=render_mode, **spec.simulator_priors())
         self.task = task
-        low, high = self._setup_calibrate(spec.sensors_hidden, spec.k_prior)
+        low, high = self._setup_calibrate(spec, reporter, 1, posterior_nodes)
         from gymnasium import spaces
 
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
+        if self.posterior is not None:
+            self.action_space = spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
 
     @property
     def observation_names(self) -> list[str]:
@@ -191,29 +291,44 @@ class HotCalibrateEnv(_Calibrate, IdentificationEnv):
 
     def reset(self, *, seed=None, options=None):
         observation, info = super().reset(seed=seed, options=options)
+        self._restart(np.zeros(1, dtype=np.int64))
         if self.k_prior is not None:
             info["k_true"] = float(self.k_true[0])
-        return observation[self._keep], info
+        return self._observation(observation[None, :])[0], info
 
     def step(self, action):
-        observation, reward, terminated, truncated, info = super().step(action)
-        return observation[self._keep], reward, terminated, truncated, info
+        from .core import action_array
+
+        action = action_array(action, self.action_space.shape)
+        sim = self.sim
+        _, terminated, truncated = sim.step_views(self._full_action(action[None, :]))
+        terminated, truncated = bool(terminated[0]), bool(truncated[0])
+        if self.render_mode == "human":
+            self.render()
+        info = sim.info_of(0)
+        reward = float(self._scored(np.array([abs(info["a_estimate"] - info["a_true"])]), np.array([terminated]))[0])
+        return self._observation(sim.observation())[0], reward, terminated, truncated, info
 
 
 class HotCalibrateVectorEnv(_Calibrate, IdentificationVectorEnv):
-    """Native vector env of the calibration tasks (see :class:`HotCalibrateEnv`)."""
+    """Native vector env of the calibration tasks (see :class:`HotCalibrateEnv`; ``reporter``,
+    ``posterior_nodes`` as there); sub-envs reset automatically restart their estimator."""
 
-    def __init__(self, num_envs: int = 1, task: str = "hyst_gym/HotCalibrate-v0", **overrides):
+    def __init__(self, num_envs: int = 1, task: str = "hyst_gym/HotCalibrate-v0", reporter: str = "estimator",
+                 posterior_nodes: int | None = None, **overrides):
         spec = _spec(task, "calibrate")
         env_args = {key: overrides.pop(key) for key in ENV_KEYWORDS if key in overrides}
         super().__init__(num_envs, spec.env_config(**overrides), **env_args, **spec.simulator_priors())
         self.task = task
-        low, high = self._setup_calibrate(spec.sensors_hidden, spec.k_prior)
+        low, high = self._setup_calibrate(spec, reporter, self.num_envs, posterior_nodes)
         from gymnasium import spaces
         from gymnasium.vector.utils import batch_space
 
         self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        if self.posterior is not None:
+            self.single_action_space = spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
+            self.action_space = batch_space(self.single_action_space, self.num_envs)
 
     @property
     def observation_names(self) -> list[str]:
@@ -221,30 +336,54 @@ class HotCalibrateVectorEnv(_Calibrate, IdentificationVectorEnv):
 
     def reset(self, *, seed=None, options=None):
         observation, info = super().reset(seed=seed, options=options)
-        return observation[:, self._keep], info
+        self._restart(self._all)
+        return self._observation(observation), info
 
     def step(self, actions):
-        observation, reward, terminated, truncated, info = super().step(actions)
-        if "final_obs" in info:  # SAME_STEP autoreset: the finished sub-envs' last observations
-            final = np.full(self.num_envs, None, dtype=object)
-            for row, obs in enumerate(info["final_obs"]):
-                final[row] = None if obs is None else obs[self._keep]
-            info["final_obs"] = final
-        return observation[:, self._keep], reward, terminated, truncated, info
+        from gymnasium.vector import AutoresetMode
+
+        from .core import action_array
+
+        actions = action_array(actions, (self.num_envs,) + self.single_action_space.shape, "actions")
+        next_step = self.autoreset_mode == AutoresetMode.NEXT_STEP
+        resetting = self._autoreset.copy() if next_step else np.zeros(self.num_envs, dtype=bool)
+        full = self._full_action(actions, skip=resetting)
+        observation, _, terminated, truncated, info = super().step(full)
+        done = terminated | truncated
+        final = info.get("final_info") if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any() else None
+        source = info if final is None else {key: np.where(done, final[key], info[key])
+                                             for key in ("a_estimate", "a_true")}
+        reward = self._scored(np.abs(source["a_estimate"] - source["a_true"]), terminated)
+        reward[resetting] = 0.0  # the step that reset them (NEXT_STEP): no reward, as SyncVectorEnv
+        if final is not None:  # SAME_STEP: the finished sub-envs' last observations, then their restart
+            last = info["final_obs"]
+            spread = None if self.posterior is None else self._spread()
+            final_obs = np.full(self.num_envs, None, dtype=object)  # one array (or None) per sub-env
+            for row, obs in enumerate(last):
+                final_obs[row] = None if obs is None else self._row_observation(obs, spread, row)
+            info["final_obs"] = final_obs
+        restarted = resetting if final is None else done
+        if restarted.any():
+            self._restart(np.flatnonzero(restarted))
+        return self._observation(observation), reward, terminated, truncated, info
+
+    def _row_observation(self, full_row, spread, row):
+        observation = full_row[self._keep]
+        return observation if spread is None else np.append(observation, np.float32(spread[row]))
 
 
 class HotCalibrateUnknownKEnv(HotCalibrateEnv):
     """``hyst_gym/HotCalibrateUnknownK-v0``: calibrate a with the pinning constant k unknown too.
 
     ## Description
-    Issue 23's "several unknowns" family. The hot-coil calibration of ``hyst_gym/HotCalibrate-v0`` (coil
+    The "several unknowns" family. The hot-coil calibration of ``hyst_gym/HotCalibrate-v0`` (coil
     C_th 5 J/K, R_th 4 K/W, start temperature from a raised-cosine prior over 5..45 C, no ambient drift, the
     coil overheats at 60 C) in which the pinning (domain-wall loss) constant k of model (6) is unknown as
     well: each episode draws k uniformly over 320..480 A/m (+-20 % about the Terfenol-D value 400 A/m,
     :data:`K_PRIOR`). k and a both lower M on the initial magnetization curve, so a rising field alone
     confounds them; after a reversal a larger k *raises* M (wider loops) while a larger a still lowers it,
-    so only an input that makes reversals and minor loops tells them apart. The agent drives the coil and
-    reports its estimate of a every step; k is a nuisance it need not report.
+    so only an input that makes reversals and minor loops tells them apart. The agent drives the coil; the
+    task's estimator is the grid posterior over (T0, k) (24 x 9 nodes), whose estimate of a marginalizes k.
 
     The floor is the Van Trees bound of the k-known task computed with a sensitivity envelope taken as the
     largest over five values of k across the prior (``calibration_floor``; sampled, like its random
@@ -253,8 +392,9 @@ class HotCalibrateUnknownKEnv(HotCalibrateEnv):
     as a nuisance.
 
     ## Action Space
-    ``Box(-1, 1, (2,))``: (field command / field_limit (1e5 A/m); the applied field moves towards it by at
-    most 2500 A/m per step), (estimate of a mapped onto Theta = [6500, 8100] A/m).
+    ``Box(-1, 1, (1,))``: field command / field_limit (1e5 A/m); the applied field moves towards it by at
+    most 2500 A/m per step. With ``reporter="agent"``: (field command, the agent's estimate of a mapped onto
+    Theta = [6500, 8100] A/m).
 
     ## Observation Space
     ``Box(float32)``, normalized, clipped to the bounds (as ``hyst_gym/HotCalibrate-v0``):
@@ -264,15 +404,19 @@ class HotCalibrateUnknownKEnv(HotCalibrateEnv):
     | 0 | output | -2 | 2 | y / y(Ms) |
     | 1 | field | -1 | 1 | H / 1e5 A/m |
     | 2 | elapsed | 0 | 1 | step / 200 |
-    | 3 | previous_estimate | -1 | 1 | the last reported estimate mapped from Theta |
+    | 3 | a_estimate | -1 | 1 | the estimator's estimate of a (the one scored), mapped from Theta |
+    | 4 | estimate_spread | 0 | 1 | its posterior standard deviation (k marginalized) / width(Theta) |
 
-    Measurement noise: 1e-4 of the output's scale, Gaussian, per step.
+    With ``reporter="agent"``: ``previous_estimate`` (the agent's last reported estimate) in place of
+    ``a_estimate``, and no ``estimate_spread``. Measurement noise: 1e-4 of the output's scale, Gaussian, per
+    step.
 
     ## Rewards
-    ``-|a_estimate - a_true| / width(Theta)`` per step, minus the soft temperature penalty within 5 K of the
-    limit; on an overheat, minus the remaining steps. The suite's metric is the RMS of
-    ``a_estimate - a_true`` (A/m) over steps 101..200 and the draws, counting width(Theta) per step after an
-    overheat.
+    As ``hyst_gym/HotCalibrate-v0``: the reward sums to minus the score,
+    ``-((a_estimate - a_true)/width(Theta))**2/100`` per step of steps 101..200, and ``-1/100`` per scored
+    step left at an overheat; the return times
+    width(Theta)**2 is minus the mean square error over the scored steps (the suite's metric is its RMS over
+    draws, A/m).
 
     ## Starting State
     Field 0, M = 0, coil at ``T0 = 278.15 + 40*Q(u)`` K (Q the raised-cosine quantile), a = 7012*T0/293.15 A/m,
@@ -283,12 +427,14 @@ class HotCalibrateUnknownKEnv(HotCalibrateEnv):
     ``terminated``: the coil passes 333.15 K (60 C). ``truncated``: 200 steps (10 s at dt = 0.05 s).
 
     ## Arguments
-    ``gymnasium.make(id, **overrides)``: any :class:`~hyst_gym.envs.config.EnvConfig` field on top of the
-    preset. Reset options as :class:`~hyst_gym.envs.single.HystEnv` (``initial_temperature`` bypasses the
-    temperature prior) and ``pinning_k`` (A/m, > 0), which bypasses the k prior.
+    ``gymnasium.make(id, reporter="estimator", posterior_nodes=None, **overrides)`` as
+    ``hyst_gym/HotCalibrate-v0``. Reset options as :class:`~hyst_gym.envs.single.HystEnv`
+    (``initial_temperature`` bypasses the temperature prior) and ``pinning_k`` (A/m, > 0), which bypasses the
+    k prior.
 
     ## Version History
-    * v0: first version (suite v2, issue 23).
+    * v0: first version (suite v2): the agent reported a; then the estimator in the loop and the reward that
+      sums to the score, with the agent-reports track kept as ``reporter="agent"``.
     """
 
     def __init__(self, task: str = "hyst_gym/HotCalibrateUnknownK-v0", render_mode=None, **overrides):
@@ -356,7 +502,7 @@ def _split_options(options):
     return (options or None), jump
 
 
-class DriftJumpEnv(_Jump, ExcitationEnv):
+class DriftJumpEnv(_Scored, _Jump, ExcitationEnv):
     """``hyst_gym/DriftJump-v0``: a jumps at an unknown time; notice it and re-identify.
 
     ## Description
@@ -384,9 +530,10 @@ class DriftJumpEnv(_Jump, ExcitationEnv):
     | 6 | minmax_gap | 0 | 1 | log1p(nu*)/log1p(2 Ms) |
 
     ## Rewards
-    ``-|a_estimate - a_true| / width(Theta)`` per step, the soft temperature penalty, and minus the remaining
-    steps at an overheat. Suite metric: mean ``|a_estimate - a_true|`` (A/m) over the 200 steps, width(Theta)
-    per step after an overheat.
+    The reward sums to minus the task's score: ``-|a_estimate - a_true| / width(Theta) / 200`` per step, and at
+    an overheat also ``-1/200`` for every step left (the metric counts width(Theta) for each). So the episode's
+    return times width(Theta) is minus the suite's per-draw metric, the mean ``|a_estimate - a_true|`` (A/m)
+    over the 200 steps (IQM over draws).
 
     ## Starting State
     Field 0, M = 0, thetahat(0) = 7300 A/m, coil and ambient at T0 uniform in 5..45 C; the jump step and
@@ -400,26 +547,30 @@ class DriftJumpEnv(_Jump, ExcitationEnv):
     (int >= 1), ``jump_change`` (K).
 
     ## Version History
-    * v0: first version (suite v2, issue 23).
+    * v0: first version (suite v2); then the reward that sums to the score (no soft temperature penalty).
     """
 
     def __init__(self, task: str = "hyst_gym/DriftJump-v0", render_mode=None, **overrides):
         spec = _spec(task, "jump")
         super().__init__(spec.env_config(**overrides), render_mode=render_mode, **spec.simulator_priors())
         self.task = task
+        self._setup_scored(spec, 1, 1)
 
     def reset(self, *, seed=None, options=None):
         options, jump = _split_options(options)
         observation, info = super().reset(seed=seed, options=options)
         self._draw_jumps(np.zeros(1, dtype=np.int64), jump)
+        self._elapsed[:] = 0
         return observation, info
 
     def step(self, action):
         self._apply_jumps()
-        return super().step(action)
+        observation, _, terminated, truncated, info = super().step(action)
+        reward = float(self._scored(np.array([abs(info["a_estimate"] - info["a_true"])]), np.array([terminated]))[0])
+        return observation, reward, terminated, truncated, info
 
 
-class DriftJumpVectorEnv(_Jump, ExcitationVectorEnv):
+class DriftJumpVectorEnv(_Scored, _Jump, ExcitationVectorEnv):
     """Native vector env of ``hyst_gym/DriftJump-v0`` (see :class:`DriftJumpEnv`); sub-envs that are
     reset automatically (``NEXT_STEP`` or ``SAME_STEP``) draw a new jump, as a single env's reset does."""
 
@@ -428,11 +579,13 @@ class DriftJumpVectorEnv(_Jump, ExcitationVectorEnv):
         env_args = {key: overrides.pop(key) for key in ENV_KEYWORDS if key in overrides}
         super().__init__(num_envs, spec.env_config(**overrides), **env_args, **spec.simulator_priors())
         self.task = task
+        self._setup_scored(spec, 1, self.num_envs)
 
     def reset(self, *, seed=None, options=None):
         options, jump = _split_options(options)
         observation, info = super().reset(seed=seed, options=options)
         self._draw_jumps(self._all, jump)
+        self._elapsed[:] = 0
         return observation, info
 
     def step(self, actions):
@@ -440,16 +593,26 @@ class DriftJumpVectorEnv(_Jump, ExcitationVectorEnv):
 
         self._apply_jumps()
         done_before = self._autoreset.copy()
-        result = super().step(actions)
+        observation, _, terminated, truncated, info = super().step(actions)
+        done = terminated | truncated
+        if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any():
+            final = info["final_info"]
+            error = np.where(done, np.abs(final["a_estimate"] - final["a_true"]),
+                             np.abs(info["a_estimate"] - info["a_true"]))
+        else:
+            error = np.abs(info["a_estimate"] - info["a_true"])
+        reward = self._scored(error, terminated)
         if self.autoreset_mode == AutoresetMode.NEXT_STEP:
             reset_rows = np.flatnonzero(done_before)
+            reward[reset_rows] = 0.0  # the step that reset them: no reward, as SyncVectorEnv
         elif self.autoreset_mode == AutoresetMode.SAME_STEP:
-            reset_rows = np.flatnonzero(result[2] | result[3])
+            reset_rows = np.flatnonzero(done)
         else:  # DISABLED: the caller resets, and reset() draws new jumps
             reset_rows = np.zeros(0, dtype=np.int64)
         if reset_rows.size:
             self._draw_jumps(reset_rows, {})
-        return result
+            self._elapsed[reset_rows] = 0
+        return observation, reward, terminated, truncated, info
 
 
 __all__ = ["K_PRIOR", "DriftJumpEnv", "DriftJumpVectorEnv", "HotCalibrateEnv", "HotCalibrateUnknownKEnv",

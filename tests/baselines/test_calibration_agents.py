@@ -1,4 +1,4 @@
-"""The grid-posterior calibration agent of suite v2 (baselines.calibration_agents)."""
+"""The grid-posterior calibration agent of suite v2 (baselines.calibration_agents), on the agent-reports track."""
 
 import gymnasium
 import numpy as np
@@ -13,7 +13,7 @@ from hyst_gym.envs.suite_v2 import task_config_v2
 
 def _play(task_id, seeds, steps=80):
     config = task_config_v2(task_id)
-    venv = gymnasium.make_vec(task_id, num_envs=len(seeds), vectorization_mode="vector_entry_point")
+    venv = gymnasium.make_vec(task_id, num_envs=len(seeds), vectorization_mode="vector_entry_point", reporter="agent")
     column = venv.unwrapped.observation_names.index("previous_estimate")
     agent = PosteriorCalibration(DesignBank([Design("sine", Sine(amplitude=4e4, frequency=0.1, offset=2e4))],
                                             config, column), task_id)

@@ -70,12 +70,15 @@ def test_calibration_prior_is_the_raised_cosine():
 
 
 def test_displacement_only_hides_the_velocity():
-    env = gymnasium.make("hyst_gym/DisplacementOnly-v0")
+    env = gymnasium.make("hyst_gym/DisplacementOnly-v0", reporter="agent")
     assert env.unwrapped.observation_names == ["displacement", "field", "elapsed", "previous_estimate"]
     obs, _ = env.reset(seed=3)
     assert obs.shape == env.observation_space.shape == (4,)
     full = env.unwrapped.sim.observation()[0]
     assert full.shape == (5,) and np.array_equal(obs, full[[0, 2, 3, 4]])
+    in_loop = gymnasium.make("hyst_gym/DisplacementOnly-v0")
+    names = ["displacement", "field", "elapsed", "a_estimate", "estimate_spread"]
+    assert in_loop.unwrapped.observation_names == names and in_loop.unwrapped.posterior.channels == [0]
 
 
 def test_jump_moves_a_at_the_drawn_step():
@@ -158,19 +161,19 @@ def test_autoreset_draws_the_next_k_as_a_single_env_reset_does():
     env = gymnasium.make(UNKNOWN_K, episode_steps=5)
     env.reset(seed=3)
     for _ in range(5):
-        env.step(np.zeros(2, dtype=np.float32))
+        env.step(np.zeros(1, dtype=np.float32))
     expected = env.reset()[1]["k_true"]
     venv = _vec(UNKNOWN_K, 1, episode_steps=5)
     venv.reset(seed=3)
     before = float(venv.unwrapped.k_true[0])
     for _ in range(6):  # 5 steps end the episode, the 6th resets it (NEXT_STEP)
-        venv.step(np.zeros((1, 2), dtype=np.float32))
+        venv.step(np.zeros((1, 1), dtype=np.float32))
     assert float(venv.unwrapped.k_true[0]) == expected != before
 
 
 def _outputs(k, field):
     """The noise-free normalized output along ``field`` (normalized commands) from the same start, with k."""
-    env = gymnasium.make(UNKNOWN_K, output_noise=0.0)
+    env = gymnasium.make(UNKNOWN_K, output_noise=0.0, reporter="agent")
     env.reset(seed=1, options={"pinning_k": k, "initial_temperature": 293.15})
     return np.array([env.step(np.array([u, 0.0], dtype=np.float32))[0][0] for u in field])
 
@@ -224,3 +227,81 @@ def test_unknown_k_floor_is_the_k_known_bound_at_k_values_across_the_prior():
     unknown = calibration_floor(UNKNOWN_K)
     assert unknown["kind"] == "bound" and 0 < unknown["value"] < known["value"]
     assert "ignores" not in known and "looser" in unknown["ignores"] and unknown["k_nodes"][0] == 320.0
+
+
+CALIBRATION_IDS = [task for task in SUITE_V2_IDS if TASKS[task].calibrates]
+
+
+def _episode_return_and_metric(env, actions, seed, options=None):
+    """(return, the suite's per-draw metric from the infos as experiments.suite.common.play counts it)."""
+    config, first = env.unwrapped.config, env.unwrapped.scored_from
+    power = 2 if env.unwrapped.spec.id in CALIBRATION_IDS else 1
+    env.reset(seed=seed, options=options)
+    total, errors = 0.0, np.full(config.episode_steps, config.theta_width)
+    for t, action in enumerate(actions):
+        _, reward, terminated, truncated, info = env.step(action)
+        total += reward
+        errors[t] = abs(info["a_estimate"] - info["a_true"])
+        if terminated or truncated:
+            break
+    return total, np.mean(errors[first:] ** power) / config.theta_width ** power, terminated
+
+
+@pytest.mark.parametrize("task_id, reporter", [(task, "estimator") for task in CALIBRATION_IDS]
+                         + [("hyst_gym/HotCalibrate-v0", "agent"), ("hyst_gym/DriftJump-v0", None)])
+def test_the_reward_sums_to_the_score(task_id, reporter):
+    """On random episodes, and on one that overheats (full field from a hot start), minus the return is the
+    suite's per-draw metric in units of width(Theta) (squared on the calibration tasks): the scored window and
+    width(Theta) for every scored step after an overheat."""
+    env = gymnasium.make(task_id, **({} if reporter is None else {"reporter": reporter}))
+    shape = env.action_space.shape
+    rng = np.random.default_rng(3)
+    for seed in (0, 1):
+        total, metric, _ = _episode_return_and_metric(env, rng.uniform(-1, 1, (200,) + shape).astype(np.float32),
+                                                      seed)
+        assert total == pytest.approx(-metric, rel=1e-9, abs=1e-12)
+    hot = {"initial_temperature": 318.15} if reporter is not None else {"initial_temperature": 318.15,
+                                                                        "ambient_drift_rate": 0.0}
+    total, metric, overheated = _episode_return_and_metric(env, np.ones((200,) + shape, dtype=np.float32), 2, hot)
+    assert overheated and total == pytest.approx(-metric, rel=1e-9)
+
+
+def test_the_estimator_in_the_loop_narrows_and_tracks_a():
+    """The calibration env's estimator: the observation's spread shrinks from the prior's as data come in, and
+    the estimate it reports (the scored one) ends within a few A/m of the truth under a moving field."""
+    env = gymnasium.make("hyst_gym/HotCalibrate-v0")
+    assert env.action_space.shape == (1,)
+    obs, _ = env.reset(seed=4)
+    names = env.unwrapped.observation_names
+    width = env.unwrapped.config.theta_width
+    prior_spread = obs[names.index("estimate_spread")]
+    assert 0.02 < prior_spread < 0.2  # the raised-cosine prior over 40 K: about 9 K, 220 A/m
+    for t in range(200):
+        obs, _, terminated, _, info = env.step(np.array([0.6 * np.sin(0.3 * t)], dtype=np.float32))
+        assert not terminated
+    assert obs[names.index("estimate_spread")] < 0.05 * prior_spread
+    assert abs(info["a_estimate"] - info["a_true"]) < 5.0
+    estimate = env.unwrapped.config.theta_min + (obs[names.index("a_estimate")] + 1) / 2 * width
+    assert estimate == pytest.approx(info["a_estimate"], abs=1e-3 * width)
+
+
+def test_the_in_loop_vector_env_restarts_its_estimator_on_autoreset():
+    """A sub-env reset automatically starts its estimator from the prior, as a single env's reset does: the
+    vector env's observations and rewards equal single envs' over two episodes."""
+    n, steps = 2, 12
+    venv = _vec("hyst_gym/HotCalibrate-v0", n, episode_steps=5)
+    singles = [gymnasium.make("hyst_gym/HotCalibrate-v0", episode_steps=5) for _ in range(n)]
+    vobs, _ = venv.reset(seed=21)
+    sobs = [env.reset(seed=21 + i)[0] for i, env in enumerate(singles)]
+    assert np.array_equal(vobs, np.array(sobs))
+    actions = np.random.default_rng(1).uniform(-1, 1, (steps, n, 1)).astype(np.float32)
+    for t in range(steps):
+        vobs, vrew, vterm, vtrunc, _ = venv.step(actions[t])
+        for i, env in enumerate(singles):
+            if t % 6 == 5:  # NEXT_STEP: the step after the 5th resets
+                obs, _ = env.reset()
+                assert vrew[i] == 0.0
+            else:
+                obs, reward, _, _, _ = env.step(actions[t, i])
+                assert vrew[i] == pytest.approx(reward, rel=1e-12, abs=1e-15)
+            assert np.array_equal(vobs[i], obs)

@@ -125,7 +125,8 @@ def test_posterior_that_marginalizes_k_beats_the_one_that_assumes_nominal_k():
     def rms(k_nodes, k):
         agent = PosteriorCalibration(task_kind(task).field_agent(design), task, k_nodes=k_nodes,
                                      nodes=64 if k_nodes == 1 else None)
-        return float(np.sqrt(play(agent, task_kind(task), seeds, options={"pinning_k": k})[0].mean()))
+        return float(np.sqrt(play(agent, task_kind(task), seeds, options={"pinning_k": k},
+                                  overrides={"reporter": "agent"})[0].mean()))
 
     marginal, nominal = rms(None, 330.0), rms(1, 330.0)
     assert marginal < 15.0 and 3 * marginal < nominal
