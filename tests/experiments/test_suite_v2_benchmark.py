@@ -180,3 +180,20 @@ def test_k_task_reference_also_plays_the_design_searched_with_k_known():
     assert agents["direct_design_k_known"][0] == "open_loop" and agents["direct_design_nominal_k"][0] == "estimator"
     assert len(designs["direct_design_k_known_knots"]) == 9
     assert all(scores.shape == (2,) and np.all(scores >= 0) for _, scores in agents.values())
+
+
+def test_direct_budget_check_records_both_budgets_and_their_change(tmp_path, capsys):
+    """The budget check searches at N and 3 N evaluations and says whether the held-out score moved by less
+    than 2 %; its relative change is recomputed here from the two scores; a bad task is one line, status 2."""
+    import json
+
+    from experiments.suite import direct_budget
+
+    out = tmp_path / "budget.json"
+    assert direct_budget.main(["--evaluations", "2", "--tuning", "2", "--heldout", "2", "--out", str(out)]) == 0
+    task = json.loads(out.read_text())["tasks"]["hyst_gym/HotCalibrate-v0"]
+    low, high = (task["budgets"][key]["heldout_score"] for key in ("2", "6"))
+    assert task["relative_change"] == pytest.approx(abs(high - low) / low)
+    assert task["flat"] == (task["relative_change"] < 0.02) and all(np.isfinite([low, high]))
+    assert direct_budget.main(["--tasks", "hyst_gym/DriftJump-v0"]) == 2
+    assert "calibration tasks" in capsys.readouterr().err
