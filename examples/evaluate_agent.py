@@ -17,7 +17,8 @@ import numpy as np  # noqa: E402
 import hyst_gym  # noqa: E402,F401  (registers the ids)
 
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-parser.add_argument("--policy", help="a Stable-Baselines3 PPO .zip (default: a 0.5 Hz sine at 60 %% of the field limit)")
+parser.add_argument("--policy",
+                    help="a Stable-Baselines3 PPO .zip (default: a 0.5 Hz sine at 60 %% of the field limit)")
 parser.add_argument("--seed", type=int, default=0)
 parser.add_argument("--out", default="estimate.png")
 args = parser.parse_args()
@@ -35,14 +36,21 @@ times, estimate, truth, temperature = [], [], [], []
 done = False
 while not done:
     obs, reward, terminated, truncated, info = env.step(act(obs, info["time"]))
-    times.append(info["time"]); estimate.append(info["a_estimate"]); truth.append(info["a_true"])
+    times.append(info["time"])
+    estimate.append(info["a_estimate"])
+    truth.append(info["a_true"])
     temperature.append(info["temperature"] - 273.15)
     done = terminated or truncated
 error = np.mean(np.abs(np.subtract(estimate, truth)))
 print(f"{len(times)} steps, mean |a_estimate - a_true| = {error:.1f} A/m, overheated: {terminated}")
 
 fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7, 5))
-top.plot(times, truth, label="a true"); top.plot(times, estimate, label="a estimate"); top.set_ylabel("a (A/m)")
-top.legend(); bottom.plot(times, temperature); bottom.set_ylabel("coil (°C)"); bottom.set_xlabel("time (s)")
+top.plot(times, truth, label="a true")
+top.plot(times, estimate, label="a estimate")
+top.set_ylabel("a (A/m)")
+top.legend()
+bottom.plot(times, temperature)
+bottom.set_ylabel("coil (°C)")
+bottom.set_xlabel("time (s)")
 fig.savefig(args.out, dpi=100)
 print(f"wrote {args.out}")

@@ -25,6 +25,8 @@ for amplitude in (2.5e4, 5e4, 1e5):                         # A/m
     axis.plot(field[last] / 1e3, magnetization[last] / 1e3, label=f"{amplitude / 1e3:.0f} kA/m")
     width = np.ptp(magnetization[last]) / 1e3
     print(f"amplitude {amplitude / 1e3:5.0f} kA/m: M spans {width:7.1f} kA/m")
-axis.set_xlabel("H (kA/m)"); axis.set_ylabel("M (kA/m)"); axis.legend(title="peak field")
+axis.set_xlabel("H (kA/m)")
+axis.set_ylabel("M (kA/m)")
+axis.legend(title="peak field")
 fig.savefig(args.out, dpi=100)
 print(f"wrote {args.out}")

@@ -61,11 +61,12 @@ def write_report(results=DEFAULT_RESULTS, readme=None, n_boot=2000):
     figures.mkdir(parents=True, exist_ok=True)
     made = []
     for scenario in table:
-        for name, make in ((f"survival_{scenario}.png", lambda p: figure_survival(table, scenario, p)),
-                           (f"iqm_settle_{scenario}.png", lambda p: figure_iqm(summary, scenario, "settle_time_s", p)),
-                           (f"iqm_rms_{scenario}.png", lambda p: figure_iqm(summary, scenario, "rms_error", p)),
-                           (f"learning_{scenario}.png", lambda p: figure_learning_curves(raw, scenario, p)),
-                           (f"pe_{scenario}.png", lambda p: figure_pe(table, scenario, p))):
+        for name, make in ((f"survival_{scenario}.png", lambda p, s=scenario: figure_survival(table, s, p)),
+                           (f"iqm_settle_{scenario}.png",
+                            lambda p, s=scenario: figure_iqm(summary, s, "settle_time_s", p)),
+                           (f"iqm_rms_{scenario}.png", lambda p, s=scenario: figure_iqm(summary, s, "rms_error", p)),
+                           (f"learning_{scenario}.png", lambda p, s=scenario: figure_learning_curves(raw, s, p)),
+                           (f"pe_{scenario}.png", lambda p, s=scenario: figure_pe(table, s, p))):
             make(figures / name)
             if (figures / name).exists():
                 made.append(name)
@@ -116,7 +117,8 @@ def write_report(results=DEFAULT_RESULTS, readme=None, n_boot=2000):
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m experiments.report", description=__doc__.splitlines()[0])
     parser.add_argument("--results", default=str(DEFAULT_RESULTS))
-    parser.add_argument("--readme", default=None, help="also update the benchmark section of this page (the project keeps it in docs/results/benchmark.md)")
+    parser.add_argument("--readme", default=None, help="also update the benchmark section of this page (the project "
+                        "keeps it in docs/results/benchmark.md)")
     parser.add_argument("--n-boot", type=int, default=2000)
     args = parser.parse_args(argv)
     try:

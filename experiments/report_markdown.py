@@ -8,6 +8,7 @@ import pathlib
 
 import numpy as np
 
+from .sections import update_readme  # noqa: F401  (re-exported: the study scripts import it from here)
 from .report_data import DEFAULT_RESULTS, HISTORY_ALTERNATIVES, RL_MAIN, ROOT, episode_length_s, is_rl_agent
 
 
@@ -39,13 +40,16 @@ def markdown_tables(summary, success, poi, table):
         lines += [f"### Scenario `{scenario}` (episodes of {episode_s:g} s, {len(agents)} agents)", "",
                   *([_scenario_description(scenario), ""] if _scenario_description(scenario) else []),
                   "| agent | runs x draws | settle time IQM (s) [95 % CI] | success | RMS error IQM (A/m) [95 % CI] | "
-                  "second-half RMS IQM (A/m) | P(improve) settle | P(improve) RMS |", "|---|---|---|---|---|---|---|---|"]
+                  "second-half RMS IQM (A/m) | P(improve) settle | P(improve) RMS |",
+                  "|---|---|---|---|---|---|---|---|"]
         for agent in sorted(agents, key=lambda a: agents[a]["settle_time_s"]["iqm"]):
             runs = table[scenario][agent]
             p = poi.get(scenario, {}).get(agent, {})
-            p_s = f"{p['settle_time_s']['probability']:.2f} vs {p['settle_time_s']['baseline']}" if "settle_time_s" in p else ""
+            p_s = (f"{p['settle_time_s']['probability']:.2f} vs {p['settle_time_s']['baseline']}"
+                   if "settle_time_s" in p else "")
             p_r = f"{p['rms_error']['probability']:.2f} vs {p['rms_error']['baseline']}" if "rms_error" in p else ""
-            lines.append(f"| {'**' + agent + '**' if is_rl_agent(agent) else agent} | {len(runs)} x {len(runs[min(runs)])} | "
+            name = "**" + agent + "**" if is_rl_agent(agent) else agent
+            lines.append(f"| {name} | {len(runs)} x {len(runs[min(runs)])} | "
                          f"{_fmt(agents[agent]['settle_time_s'])} | {success[scenario][agent]:.0%} | "
                          f"{_fmt(agents[agent]['rms_error'])} | {_fmt(agents[agent].get('tracking_rms_error'))} | "
                          f"{p_s} | {p_r} |")
@@ -226,8 +230,10 @@ def readme_section(tgt, summary, compute, ablation=None, budget_lines=(), floor=
              "field/slew limits and the same 50 held-out draws.", "",
              "```bash", ".venv/bin/python -m experiments.run --workers 2      # raw results -> experiments/results/raw",
              ".venv/bin/python -m experiments.settle_floor           # the convergence bound, checked on every agent",
-             ".venv/bin/python -m experiments.report --readme docs/results/benchmark.md  # tables, figures, summary.json, this section",
-             ".venv/bin/hyst-gym train --algo ppo --env hyst_gym/Excitation-v0 --timesteps 50000 --seed 0 --out runs/ppo0",
+             ".venv/bin/python -m experiments.report --readme docs/results/benchmark.md  "
+             "# tables, figures, summary.json, this section",
+             ".venv/bin/hyst-gym train --algo ppo --env hyst_gym/Excitation-v0 --timesteps 50000 --seed 0 "
+             "--out runs/ppo0",
              ".venv/bin/hyst-gym train --algo ppo --reward information --timesteps 300000 --out runs/ppo_info0  "
              "# no truth in the reward",
              ".venv/bin/hyst-gym train --algo recurrent_ppo --timesteps 50000 --out runs/lstm0  # LSTM, no frame stack",
@@ -284,7 +290,8 @@ def markdown_floor(floor, tgt):
         gap = 1 - 0.5 * half["ramp_iqm"] / p["bound_settle_s"]
         lines[-1] += (f" Half the ramp ({0.5 * half['ramp_iqm']:.3g} s) lies {abs(gap):.0%} "
                       f"{'below' if gap > 0 else 'above'} it.")
-    lines.append(f"  Checks: the full nonlinear closed loop under the bound's fastest input (`slew_ramp`: a ramp at the "
+    lines.append(f"  Checks: the full nonlinear closed loop under the bound's fastest input (`slew_ramp`: a ramp at "
+                 f"the "
                  f"slew limit to {p['peak_field'] / 1e3:.1f} kA/m, then held) settles at "
                  f"{p['slew_ramp_noise_free_settle_s']:.3g} s with the noise off and "
                  f"{_fmt(p['slew_ramp_heldout'])} s on the held-out draws. Of {p['runs_checked']} agents and trained "
@@ -307,7 +314,8 @@ def markdown_floor(floor, tgt):
                      f"adaptation gain (the paper's gamma = 1). Fastest input vs the paper's ramp, environment closed "
                      f"loop, noise off: {cells}. {verdict}; the benchmark keeps the paper's gain.")
     drift = tgt.get("drift_rms_half_best_schedule")
-    line = (f"- Drift: the same bound for each held-out draw (initial errors up to {d['largest_initial_error']:.0f} A/m) "
+    line = (f"- Drift: the same bound for each held-out draw (initial errors up to "
+            f"{d['largest_initial_error']:.0f} A/m) "
             f"puts the episode RMS error of any input at IQM {_fmt(d['rms_bound'])} A/m")
     if drift:
         line += f", against the target's {0.5 * drift['schedule_iqm']:.3g} A/m"
@@ -321,12 +329,3 @@ def markdown_floor(floor, tgt):
     return lines + [line]
 
 
-def update_readme(path: pathlib.Path, body: str, area: str = "benchmark"):
-    """Replace only the text between ``<!-- section:AREA -->`` and ``<!-- /section:AREA -->``."""
-    text = path.read_text()
-    start, end = f"<!-- section:{area} -->", f"<!-- /section:{area} -->"
-    if text.count(start) != 1 or text.count(end) != 1 or text.index(start) > text.index(end):
-        raise ValueError(f"{path}: expected exactly one {start} ... {end} pair")
-    head, rest = text.split(start)
-    _, tail = rest.split(end)
-    path.write_text(f"{head}{start}\n{body.strip()}\n{end}{tail}")

@@ -199,7 +199,7 @@ def main(argv=None) -> int:
     text = markdown_table()
     print(text)
     if not args.print:
-        from experiments.report_markdown import update_readme
+        from experiments.sections import update_readme
 
         update_readme(PAGE, text, area=AREA)
     return 0

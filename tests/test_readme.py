@@ -60,7 +60,8 @@ def test_readme_has_blocks_of_known_languages_only():
     assert sum(lang == CHECK for lang, _, _ in blocks) >= 2
     for path in [README, *DOCS]:
         for lang, _, line in fenced_blocks(path):
-            assert lang in (RUN, CHECK, *SHOW), f"{path.relative_to(REPO)}:{line}: block of language {lang!r} is not checked"
+            assert lang in (RUN, CHECK, *SHOW), \
+                f"{path.relative_to(REPO)}:{line}: block of language {lang!r} is not checked"
     for lang, _, line in blocks:
         assert lang in (RUN, CHECK), f"README.md:{line}: every README block must be python or bash"
 
@@ -164,6 +165,36 @@ def _check_python_entry(target: Path | None, label: str, args, help_argv, proble
             problems.append(f"{where}: {label} does not accept {flag}")
 
 
+def _check_installed_tool(name, argv, problems, where):
+    """``mkdocs serve|build`` (the docs extra) and ``tensorboard --logdir`` (the rl extra)."""
+    import importlib.util
+
+    if name == "mkdocs":
+        if argv[1:2] not in (["serve"], ["build"]):
+            problems.append(f"{where}: mkdocs {argv[1:2]}: expected serve or build")
+        if importlib.util.find_spec("mkdocs") is None:
+            problems.append(f"{where}: mkdocs is not installed (the docs extra)")
+    else:
+        if "--logdir" not in argv:
+            problems.append(f"{where}: tensorboard without --logdir")
+        if importlib.util.find_spec("tensorboard") is None:
+            problems.append(f"{where}: tensorboard is not installed by the rl extra")
+
+
+def _check_python(argv, problems, where):
+    """``python -m pip ...``, ``python -m MODULE --flags`` (pytest: any) and ``python SCRIPT --flags``."""
+    if argv[1:3] == ["-m", "pip"]:
+        _check_pip(argv[3:], problems, where)
+    elif argv[1] == "-m":
+        module = argv[2]
+        if module != "pytest":
+            _check_python_entry(_module_file(module), f"python -m {module}", argv[3:], ["-m", module], problems,
+                                where)
+    else:
+        script = REPO / argv[1]
+        _check_python_entry(script if script.exists() else None, argv[1], argv[2:], [argv[1]], problems, where)
+
+
 def check_command(argv, problems, hyst_gym_calls, where):
     while argv and (argv[0] == "time" or re.match(r"^[A-Za-z_]\w*=", argv[0])):
         argv = argv[1:]
@@ -180,30 +211,10 @@ def check_command(argv, problems, hyst_gym_calls, where):
         _check_pip(argv[1:], problems, where)
     elif name == "hyst-gym":
         hyst_gym_calls.append((where, argv[1:]))
-    elif name == "mkdocs":
-        import importlib.util
-        if argv[1:2] not in (["serve"], ["build"]):
-            problems.append(f"{where}: mkdocs {argv[1:2]}: expected serve or build")
-        if importlib.util.find_spec("mkdocs") is None:
-            problems.append(f"{where}: mkdocs is not installed (the docs extra)")
-    elif name == "tensorboard":
-        if "--logdir" not in argv:
-            problems.append(f"{where}: tensorboard without --logdir")
-        import importlib.util
-        if importlib.util.find_spec("tensorboard") is None:
-            problems.append(f"{where}: tensorboard is not installed by the rl extra")
+    elif name in ("mkdocs", "tensorboard"):
+        _check_installed_tool(name, argv, problems, where)
     elif name.startswith("python"):
-        if argv[1:3] == ["-m", "pip"]:
-            _check_pip(argv[3:], problems, where)
-        elif argv[1] == "-m":
-            module = argv[2]
-            if module == "pytest":
-                return
-            _check_python_entry(_module_file(module), f"python -m {module}", argv[3:], ["-m", module], problems,
-                                where)
-        else:
-            script = REPO / argv[1]
-            _check_python_entry(script if script.exists() else None, argv[1], argv[2:], [argv[1]], problems, where)
+        _check_python(argv, problems, where)
     else:
         problems.append(f"{where}: command {argv[0]!r} is not checked by tests/test_readme.py")
 

@@ -65,7 +65,8 @@ def test_report_summary_matches_raw_and_checks_targets(tmp_path):
     target = details["targets"]["paper_settle_half_ramp"]
     assert target["met"] == (rl["iqm"] <= 0.5 * entry["iqm"])
     tracking = details["targets"]["drift_rms_half_best_schedule"]["tracking"]
-    assert tracking["best_schedule"] == "sine" and tracking["schedule"] == summary["drift"]["sine"]["tracking_rms_error"]
+    assert tracking["best_schedule"] == "sine"
+    assert tracking["schedule"] == summary["drift"]["sine"]["tracking_rms_error"]
     # second-half RMS = RMS/10 in every synthetic episode: the first half holds 1 - 1/200 of the squared error
     assert tracking["first_half_share_of_squared_error"] == pytest.approx(1 - 0.01 / 2)
     text = (tmp_path / "RESULTS.md").read_text()
