@@ -591,8 +591,9 @@ class BatchSimulator:
             temperature = config.temperature_for_a(checked["a_true"])
         if "initial_temperature" in checked:
             temperature = checked["initial_temperature"]
-        for value in np.unique(np.atleast_1d(temperature if temperature is not None else [])):
-            config.hysteresis.replace(a=float(config.a_of(value)))  # raises naming the parameter
+        if temperature is not None:  # a is monotone in T: the extremes of the rows' starts bound every one
+            for value in {float(np.min(temperature)), float(np.max(temperature))}:
+                config.hysteresis.replace(a=float(config.a_of(value)))  # raises naming the parameter
         return checked
 
     # ------------------------------------------------------------------ stepping
