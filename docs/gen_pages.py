@@ -81,7 +81,8 @@ def env_page(env_id: str) -> str:
     out = [f"# `{env_id}`", "", "| | |", "|---|---|",
            f"| Action Space | `{env.action_space}` |", f"| Observation Space | `{env.observation_space}` |",
            f"| import | `gymnasium.make(\"{env_id}\")` (after `import hyst_gym`) |",
-           f"| vector env | `gymnasium.make_vec(\"{env_id}\", num_envs=n, vectorization_mode=\"vector_entry_point\")` |",
+           f"| vector env | `gymnasium.make_vec(\"{env_id}\", num_envs=n, "
+           f"vectorization_mode=\"vector_entry_point\")` |",
            f"| class | `{type(unwrapped).__module__}.{type(unwrapped).__name__}` |", ""]
     preset = task_preset(env_id)
     if preset is not None:
