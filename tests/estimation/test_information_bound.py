@@ -200,3 +200,21 @@ def test_heated_floor_with_an_ample_budget_is_the_free_floor_and_rises_as_the_bu
     assert floors[0].value < floors[1].value < floors[2].value
     with pytest.raises(ValueError, match="first_step"):
         heated_floor(setting, ceiling, _thermal(), 60, 1600.0)
+
+
+def test_current_field_envelope_covers_the_initial_curve_and_its_own_histories():
+    """The envelope is non-decreasing, lies at or above |dM/da| on the initial curve at fields between its
+    bins (an independent evaluation) and on the descending branch, and the later sets only raise it."""
+    from hyst_gym.estimation.information_bound import current_field_envelope
+
+    params = HysteresisParams()
+    envelope = current_field_envelope([params], (6653.0, 7968.0), 1e5, 2500.0, 625.0, 1250.0, n_a=3, n_paths=16)
+    assert np.all(np.diff(envelope.envelope) >= 0) and np.all(envelope.envelope >= envelope.sampled)
+    assert envelope.correction_ratio >= 1 and envelope.residual_ratio >= 1
+    up = np.arange(1, 33) * 2500.0 - 777.0
+    path = np.concatenate([up, up[::-1][1:]])
+    seen = magnetization_sensitivity(path, [6653.0, 7300.0, 7968.0], params, 625.0).max(axis=1)
+    assert np.all(seen <= envelope.at(path) * 1.02)      # a between-node a may sit a little above the nodes
+    assert envelope.at(2e4) > 1.1 * envelope.at(1e4)     # it follows the present field, not the largest so far
+    with pytest.raises(ValueError, match="above"):
+        envelope.at(2e5)
