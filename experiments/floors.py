@@ -123,6 +123,7 @@ def task_floor(spec, n_paths: int = N_PATHS, seed: int = 0, convergence: bool = 
                 f"|dM/da| from {n_paths} x 3 random histories per model, raised bin by bin; overheating "
                 "checked not to pay; experiments/results/floors.md"),
         "envelope_at_20kA_per_m": float(envelope.at(2.0e4)),
+        "transducer": type(config.transducer).__name__,
         "n_paths": n_paths, "n_a": A_NODES, "seed": seed, "wall_s": round(time.time() - started, 1),
     }
     if coarse is not None:
@@ -197,8 +198,9 @@ What is sampled rather than proven, and checked:
   a ramp-hold-sustain family searched at random and refined around its best, thermostats and
   structured dithers, each scaled into a 15 K and a 35 K budget. Averaged over the starts of a 1 K
   piece of the prior (what Van Trees uses) none exceeds the ceiling at any horizon; the best reaches
-  about 0.72 (15 K) and 0.77 (35 K) of it, so the information ceiling is loose by at most 1/0.72
-  there, the floor by at most about sqrt(1/0.72) = 1.18 at the hottest budget.
+  about 0.72 (15 K) and 0.77 (35 K) of it. So the ceiling is within 1/0.72 of an input found, and a
+  Van Trees floor computed with that input's information instead would sit about sqrt(1/0.72) = 1.18x
+  above this one at the hottest budget: that much of the slack is the bound's.
 * For the k task, Psi between its five k nodes.
 * The dual's multiplier family: any member gives a valid bound; against the exact linear programme of
   the same grid relaxation it is within 5 % (test in `tests/estimation/test_information_bound.py`).
@@ -225,6 +227,31 @@ bound that charges the input for learning T0.
 """
 
 
+#: the target ratio of the best agent's score to the floor
+TARGET_RATIO = 1.6
+#: why the displacement-only task's best agent is further from its floor than the others (see target_line)
+DISPLACEMENT_NOTE = ("the floor is the noisy first-order task's (the bound sees the transducer only through the l1 "
+                     "norm of its response to M, the same normalized gain, and the same noise); for the slowly "
+                     "varying inputs that collect the most information the displacement carries what the "
+                     "first-order output does, and the same agents score lower on the noisy first-order task, so "
+                     "the extra slack is the agents' on this plant, not the bound's (whose own slack the adversarial "
+                     "search puts at about 1.2x)")
+
+
+def target_line(record: dict) -> str:
+    """One line on the targets for a task's record."""
+    if "best_rms" not in record:
+        return "no committed agent scores to compare with"
+    below = record["best_ci"][1] < record["value"]
+    ratio = record["best_over_floor"]
+    text = (f"best agent {record['best_agent']} {record['best_rms']:.2f} [{record['best_ci'][0]:.2f}, "
+            f"{record['best_ci'][1]:.2f}]: {'its CI lies BELOW the floor' if below else 'CI not below the floor'}; "
+            f"{ratio:.2f}x the floor ({'within' if ratio <= TARGET_RATIO else 'NOT within'} {TARGET_RATIO}x)")
+    if ratio > TARGET_RATIO and record.get("transducer") == "LumpedLinear":
+        text += f": {DISPLACEMENT_NOTE}"
+    return text
+
+
 def markdown(records: dict, meta: dict) -> str:
     lines = ["# Floors of the calibration tasks with the heat budget",
              "",
@@ -247,7 +274,12 @@ def markdown(records: dict, meta: dict) -> str:
                      f"{env['correction_ratio']:.2f}, {env['residual_ratio']:.2f} |")
     lines += ["", "Per task in `floors.json`: the piece half width kept, the prior mass used, the overheat "
               "margin (> 1: overheating never pays), the information ceilings at the last step for the coolest "
-              "and hottest start, and the envelope's statistics.", DERIVATION]
+              "and hottest start, the envelope's statistics and the floor from a sixteenth of the histories.",
+              "", "## Against the targets", "",
+              f"Target: no agent's CI lies below the floor, and the best agent is within {TARGET_RATIO}x of it "
+              "(agents of the committed reduced-profile results; the suite's own run replaces them)."]
+    lines += [f"* `{task}`: {target_line(r)}" for task, r in records.items()]
+    lines += [DERIVATION]
     return "\n".join(lines) + "\n"
 
 
