@@ -60,7 +60,10 @@ on a linear-Gaussian case, where the bound is attained.
    on a fraction ``q`` of a piece's draws gains at most ``q*I_free`` of information and pays
    ``q*(e_over^2 - (2 d_a)^2)`` (the metric counts ``e_over`` = width(Theta) per step after an
    overheat): :func:`heated_floor` checks that this never pays, so the floor holds for every policy,
-adaptive or not, overheating or not.
+   adaptive or not, overheating or not.
+
+The envelope is sampled, as before; its caveat (one-step near-switch events of model (6) that an input
+tuned to the true a could repeat) is in :func:`calibration_heated_floor`.
 """
 
 from __future__ import annotations
