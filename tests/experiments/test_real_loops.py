@@ -33,6 +33,7 @@ def test_scores_a_folder_of_loop_pairs(tmp_path):
     # the 40 and 16 A/m loops are predicted within the 8 % (docs/results/real-loops.md)
     assert all(loop["nrmse"] < 0.08 for loop in entry["loops"][1:3])
     assert 0 < entry["fit_seconds"] <= entry["all_candidates_fit_seconds"]
+    assert 0 < entry["fit_cpu_seconds"] <= entry["all_candidates_cpu_seconds"]
     if entry["variant"] in real_loops.MODEL_CANDIDATES["domain_wall"]:
         assert {"a", "k", "alpha", "Ms", "c"} <= set(entry["params"])
         assert ("chi_r" in entry["params"]) == entry["variant"].endswith("small_loop")
