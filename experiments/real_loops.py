@@ -565,13 +565,18 @@ def needs_transfer(rows) -> bool:
     return len(rows[0]["nrmse_B"]) < VALIDATION_MIN_LOOPS
 
 
+def _finite(value) -> float:
+    """A score that is not a number (a candidate whose model could not run) ranks last, not first."""
+    return float(value) if np.isfinite(value) else np.inf
+
+
 def validation_score(row) -> float:
     """NRMSE of B on the validation loop, the second largest (``nrmse_B`` is ordered largest first)."""
-    return list(row["nrmse_B"].values())[1]
+    return _finite(list(row["nrmse_B"].values())[1])
 
 
 def fitted_score(row) -> float:
-    return list(row["nrmse_B"].values())[0]
+    return _finite(list(row["nrmse_B"].values())[0])
 
 
 def choose_variant(rows, transfer: dict):
@@ -582,7 +587,7 @@ def choose_variant(rows, transfer: dict):
         return min(rows, key=lambda r: (validation_score(r), fitted_score(r))), "validation"
     scored = [r for r in rows if r["variant"] in transfer]
     if scored:
-        return min(scored, key=lambda r: (transfer[r["variant"]], fitted_score(r))), "transfer"
+        return min(scored, key=lambda r: (_finite(transfer[r["variant"]]), fitted_score(r))), "transfer"
     return min(rows, key=fitted_score), "fitted"
 
 

@@ -51,6 +51,9 @@ def test_rule_chooses_by_the_validation_loop_and_never_reads_the_predicted_loops
     # an exact tie on the validation loop: the lower fitted-loop NRMSE
     tied = [_row("a", 0.004, 0.02, 0.1), _row("b", 0.002, 0.02, 0.3)]
     assert real_loops.choose_variant(tied, {})[0]["variant"] == "b"
+    # a candidate whose model could not run (NaN) ranks last
+    failed = [_row("a", 0.004, float("nan"), 0.1), _row("b", 0.002, 0.05, 0.3)]
+    assert real_loops.choose_variant(failed, {})[0]["variant"] == "b"
 
 
 def test_rule_falls_back_to_the_transfer_score_below_three_loops():
