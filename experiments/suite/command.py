@@ -34,6 +34,8 @@ def configure_parser(parser) -> None:
                         "(24 draws, RL at small budgets, 3 seeds); writes suite_v2_reduced.*")
     parser.add_argument("--no-docs", action="store_true", help="v2 only: do not rewrite the suite-v2 section of "
                         "docs/results/suite.md (the full and reduced profiles write it)")
+    parser.add_argument("--docs", action="store_true", help="v2 --quick only: write the quick profile's own "
+                        "section (suite-v2-quick) of docs/results/suite.md")
     parser.add_argument("--merge", action="store_true", help="v2 only: keep the other tasks of the profile's "
                         "stored JSON (same settings) and replace or add only the --tasks of this run")
     parser.add_argument("--speed-only", action="store_true", help="v2 only: train and evaluate nothing; re-measure "
@@ -59,8 +61,8 @@ def _v1_options(args):
     from experiments.suite import v1
     from hyst_gym.envs.suite_v1 import TASKS, suite_tasks
 
-    if args.reduced or args.no_docs or args.speed_only or args.merge:
-        raise UsageError("--reduced, --no-docs, --merge and --speed-only are options of --suite v2")
+    if args.reduced or args.no_docs or args.speed_only or args.merge or args.docs:
+        raise UsageError("--reduced, --no-docs, --docs, --merge and --speed-only are options of --suite v2")
     profile = v1.PROFILES["quick" if args.quick else "full"]
     default = list(suite_tasks()) + ([] if args.quick else [t for t in TASKS if t not in suite_tasks()])
     task_ids = _task_ids(args, "v1", default)
@@ -80,8 +82,10 @@ def _v2_options(args):
     task_ids = _task_ids(args, "v2", list(suite_ids("v2")))
     stem = "suite_v2" if profile.name == "full" else f"suite_v2_{profile.name}"
     figure_path = pathlib.Path(args.figure) if args.figure else FIGURES / f"{stem}.png"
-    # the reduced profile writes the page while the full one has not been run; the quick one never does
-    docs = None if (args.no_docs or profile.name == "quick") else DOCS_PAGE
+    if args.docs and profile.name != "quick":
+        raise UsageError("--docs is an option of --suite v2 --quick (the full and reduced profiles write the page)")
+    # the reduced profile writes the page while the full one has not been run; the quick one only with --docs
+    docs = None if args.no_docs or (profile.name == "quick" and not args.docs) else DOCS_PAGE
     return profile, task_ids, pathlib.Path(args.out), figure_path, docs
 
 
@@ -106,7 +110,8 @@ def _run_v2(args) -> int:
                            "hyst-gym benchmark --suite v2 --speed-only" + PROFILE_FLAG[profile.name])
         return 0
     try:
-        v2.run_suite(profile, task_ids, out, figure_path, docs=docs, merge=args.merge)
+        v2.run_suite(profile, task_ids, out, figure_path, docs=docs, merge=args.merge,
+                     docs_area="suite-v2-quick" if profile.name == "quick" else v2.DOCS_AREA)
     except ValueError as error:
         if not str(error).startswith("merge:"):
             raise

@@ -410,6 +410,7 @@ def markdown(data: dict) -> str:
     tasks = data["tasks"]
     lines = [f"Profile `{data['profile']}` ({data['profile_note']}): {data['heldout_draws']} held-out draws per agent; "
              f"RL {data['rl_budget']}; {_wall(data)}; hyst-gym {data['package_version']}.",
+             f"Calibration track: {data.get('track', OLD_TRACK)}.",
              "Calibration tasks: RMS error over steps 101..200 and the draws (A/m), floor a Van Trees bound; jump "
              "task: IQM of the per-draw mean |error| (A/m), floor an oracle. [95 % bootstrap CI]; lower is better.",
              ""] + _task_rows(tasks)
@@ -469,13 +470,18 @@ def figure(data: dict, path: pathlib.Path) -> None:
     plt.close(fig)
 
 
-def write_docs(data: dict, figure_path: pathlib.Path, docs: pathlib.Path = DOCS_PAGE) -> None:
-    """The ``suite-v2`` section of the results page: the profile's table and figure (a full run's
-    replaces a reduced one's; the table's first line names the profile)."""
+def write_docs(data: dict, figure_path: pathlib.Path, docs: pathlib.Path = DOCS_PAGE, area: str = DOCS_AREA) -> None:
+    """A section of the results page (default ``suite-v2``): the profile's table and figure (a full run's
+    replaces a reduced one's; the table's first line names the profile and the calibration track)."""
     from experiments.report_markdown import update_readme
 
-    update_readme(docs, markdown(data) + f"\n![suite v2](../figures/{figure_path.name})\n", area=DOCS_AREA)
+    update_readme(docs, markdown(data) + f"\n![suite v2](../figures/{figure_path.name})\n", area=area)
 
+
+#: the calibration tasks' track of this code, and of a stored JSON that does not say (measured before it)
+TRACK = "estimator in the loop (every agent designs the field; the env's grid posterior reports a)"
+OLD_TRACK = ("the agent reports its own estimate (the agent-reports track, `reporter=\"agent\"`: measured before the "
+             "calibration envs ran their estimator; the non-RL agents reported the same grid posterior)")
 
 PROFILE_NOTES = {"full": "the suite's own decision",
                  "quick": "a smoke run on fewer draws with the committed RL models; not the suite's decision",
@@ -534,7 +540,7 @@ def merge_stored(data: dict, path: pathlib.Path) -> dict:
 
 
 def run_suite(profile: Profile, task_ids, out: pathlib.Path, figure_path: pathlib.Path, raw: pathlib.Path = RAW,
-              docs: pathlib.Path | None = None, log=print, merge: bool = False) -> dict:
+              docs: pathlib.Path | None = None, log=print, merge: bool = False, docs_area: str = DOCS_AREA) -> dict:
     import hyst_gym
 
     start = time.time()
@@ -559,7 +565,7 @@ def run_suite(profile: Profile, task_ids, out: pathlib.Path, figure_path: pathli
                              f"({'all tasks' if tasks is None else ', '.join(tasks)})"
                              for algo, (factor, seeds, tasks) in profile.flat.items()),
             "targets": {"headroom": HEADROOM_TARGET, "rl_gap_left": GAP_TARGET, "speed_steps_per_s": SPEED_TARGETS},
-            "tasks": tasks, "sanity_tier": sanity_tier(),
+            "tasks": tasks, "sanity_tier": sanity_tier(), "track": TRACK,
             "rerun": "hyst-gym benchmark --suite v2 " + {"full": "", "quick": "--quick", "reduced": "--reduced"}[
                 profile.name] + " --tasks TASK_ID --merge",
             "train_wall_s": train_s, "wall_s": time.time() - start}
@@ -571,7 +577,7 @@ def run_suite(profile: Profile, task_ids, out: pathlib.Path, figure_path: pathli
     (out / f"{stem}.md").write_text(text)
     figure(data, figure_path)
     if docs is not None:
-        write_docs(data, figure_path, docs)
+        write_docs(data, figure_path, docs, docs_area)
     log(f"[suite v2] wrote {out / f'{stem}.json'} in {data['wall_s'] / 60:.1f} min")
     return data
 
