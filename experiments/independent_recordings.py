@@ -126,6 +126,8 @@ EFFECT_SPECS = {spec.name: spec for spec in (
     EffectSpec("sensor_nonlinearity", True, False, False, "cubic sensor gain on each output sensor"),
     EffectSpec("amplifier_saturation", True, False, True,
                "current amplifier soft-saturates; the recorded field is the commanded one"),
+    EffectSpec("input_lag", True, False, True,
+               "the field in the rod lags the recorded one (a coil's L/R): a first-order lag and a delay"),
     EffectSpec("two_phase_rod", False, False, True,
                "inhomogeneous rod: volume fraction w of a second hysteresis material"),
 )}
@@ -853,6 +855,8 @@ def _draw_effect(name: str, base: BaseDraw, reference: dict) -> EffectDraw:
       half range, y_r within +-30 % of the mid-range, |gamma| 0.04-0.15 (knob: scale, cap 5);
     * amplifier_saturation: H_true = H/(1 + |H/H_sat|^p)^(1/p), H_sat = max|H|/(1 + overdrive),
       overdrive 0.15-0.8, p 3-8 (knob: overdrive, cap 4);
+    * input_lag: the field in the rod is the recorded one delayed by delay_in 0-2 samples and lagged by
+      tau_in 2-6 samples (knob: scale, a factor on both, cap 20);
     * two_phase_rod: volume fraction w 0.2-0.5 of a second material (a and k x or / 1.5-3, c
       x 0.5-2, Ms x 0.8-1.2, same rho) (knob: w, cap 0.5).
     """
@@ -885,6 +889,9 @@ def _draw_effect(name: str, base: BaseDraw, reference: dict) -> EffectDraw:
                           "fraction", 0.6)
     if name == "anhysteretic_shape":
         return EffectDraw(name, (("a_langevin", mat.a / 3.0),))
+    if name == "input_lag":
+        return EffectDraw(name, (("tau_in", rng.uniform(2, 6) / cond.sample_rate),
+                                 ("delay_in", rng.uniform(0, 2) / cond.sample_rate), ("scale", 1.0)), "scale", 20.0)
     if name == "delta_e":
         return EffectDraw(name, (("beta", rng.uniform(0.3, 1.0)),), "beta", 3.0)
     if name == "small_loop":
@@ -937,7 +944,7 @@ def _forward(base: BaseDraw, eff: EffectDraw, time, field, reference=None, cache
     if reference is not None and not EFFECT_SPECS[name].changes_magnetization:
         M = reference["M"]
     else:
-        applied = _applied_field(base, eff, field)
+        applied = _applied_field(base, eff, field, dt)
         materials, eddy_k, thermal = [mat], 0.0, None
         if name == "eddy_current":
             eddy_k = eff["k_e"]
@@ -978,9 +985,13 @@ def _forward(base: BaseDraw, eff: EffectDraw, time, field, reference=None, cache
     return out
 
 
-def _applied_field(base: BaseDraw, eff: EffectDraw, field) -> np.ndarray:
-    """The field (A/m) the rod feels, given the recorded one: plus the unrecorded bias H0, or
-    through the saturating amplifier ``H/(1 + |H/H_sat|^p)^(1/p)``."""
+def _applied_field(base: BaseDraw, eff: EffectDraw, field, dt: float) -> np.ndarray:
+    """The field (A/m) the rod feels, given the recorded one (sampled every ``dt`` s): plus the unrecorded
+    bias H0, through the saturating amplifier ``H/(1 + |H/H_sat|^p)^(1/p)``, or delayed and lagged."""
+    if eff.name == "input_lag":
+        steps = np.arange(len(field), dtype=float)
+        delayed = np.interp(steps - eff["delay_in"] * eff["scale"] / dt, steps, field)
+        return sensor_lag(delayed, dt, eff["tau_in"] * eff["scale"])
     if eff.name == "field_bias":
         return field + _bias_field(base, eff)
     if eff.name == "amplifier_saturation":

@@ -36,6 +36,8 @@ MAINS_NAMES = {ch: tuple(f"{term}_{ch[0]}" for term in ("mains_cos", "mains_sin"
                for ch in ("magnetization", "displacement")}
 #: The input map's coefficients in the order :func:`.model.mapped_field` takes them.
 INPUT_MAP_NAMES = ("input_quadratic", "input_cubic", "input_saturation", "input_saturation_negative")
+#: The input dynamics' lag and delay (s), in the order :func:`.model.input_dynamics` takes them.
+INPUT_DYNAMICS_NAMES = ("tau_in", "delay_in")
 #: Mains pickup needs this many cycles in the record (a sinusoid of known frequency is fixed by a few)
 #: and its third harmonic below the Nyquist frequency.
 MAINS_MIN_CYCLES = 3
@@ -175,6 +177,13 @@ def _input_map_parameters(recording, structure, base_values):
     }
 
 
+def _input_dynamics_parameters(recording, structure, base_values):
+    # a coil's L/R or an amplifier's bandwidth: a lag and a transport delay of up to a few % of the record
+    frame = Frame.of(recording)
+    return {"tau_in": Parameter("tau_in", frame.dt, 0.0, 0.05 * frame.duration, "s", scale=frame.dt),
+            "delay_in": Parameter("delay_in", 0.0, 0.0, 0.02 * frame.duration, "s", scale=frame.dt)}
+
+
 def _per_channel_terms(names_by_channel, lower, upper, scale):
     """Builder of a per-output-channel additive or map family with coefficients in units of the
     channel's half-span, free where the channel is recorded and explained."""
@@ -254,6 +263,12 @@ def _small_loop_starts(model, start):
 def _input_map_starts(model, start):
     # from the identity and from a moderate saturation (gain at the peak field 0.7 of the small-signal one)
     return [start, dict(start, input_saturation=1.0, input_saturation_negative=1.0)]
+
+
+def _input_dynamics_starts(model, start):
+    # from a lag of one step and from a delay of two (a delay and a lag bend the loop alike at low rates)
+    dt = model.parameters["tau_in"].scale
+    return [start, dict(start, tau_in=0.1 * dt, delay_in=2.0 * dt)]
 
 
 def _from_initial(model, start):
@@ -383,6 +398,9 @@ _SLOW = "repeat the record at a lower and a higher drive frequency (rate effects
 _CALIBRATE_SENSOR = "calibrate the sensor against a reference (a static map of the sensor does not follow the drive)"
 _AFTER_MECHANICS = (_BROADBAND + ": a sensor's static map acts after the mechanics, a magnetostriction or "
                     "stiffness law before them")
+_FIELD_AT_ROD = ("measure the field at the rod (a Hall probe or a field coil) beside the recorded drive: an input lag "
+                 "delays it, a sensor lag only the outputs (with a rate-independent loop the two are otherwise the "
+                 "same record)")
 _MAINS_CYCLES = ("record longer (many mains cycles) or a stretch with the drive off: pickup repeats at 50/60 Hz, "
                  "a drift does not")
 
@@ -494,6 +512,17 @@ _REGISTERED = (
         parameter_names=("tau_m", "tau_x"), parameters=_sensor_lag_parameters,
         identified_by=FirstFree(("tau_x", "tau_m")), applies=_always, rate_dependent=True, rescue=(),
         confusable={}),
+    Effect(
+        name="input_lag", slot="input dynamics (recorded to true field): a lag and a delay",
+        words="input dynamics: the field in the material lags the recorded one (a coil's L/R or an amplifier's "
+              "bandwidth: a first-order lag tau_in and a delay delay_in)",
+        parameter_names=INPUT_DYNAMICS_NAMES, parameters=_input_dynamics_parameters, identified_by=BestDetermined(),
+        applies=_always, rate_dependent=True, rescue=("tau_in",), starts=_input_dynamics_starts,
+        # no delay (0) is where the family starts, not a wall: a fit that ends there has found a pure lag
+        search_ranges=("delay_in",),
+        confusable={"sensor_lag": _everywhere(_FIELD_AT_ROD),
+                    "eddy_current": _everywhere(_SLOW + "; an input lag shifts the loop in time, eddy loss "
+                                                "widens it")}),
     Effect(
         name="field_bias", slot="input map (recorded to true field): an offset",
         words="an unrecorded DC bias field H0 (e.g. a permanent magnet) added to H",

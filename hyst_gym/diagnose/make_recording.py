@@ -35,6 +35,8 @@ Effects at ``strength = 1`` (the default; strength scales the effect's size):
 * ``anhysteretic_shape``: Langevin (3) instead of Ising (2) (strength does not apply);
 * ``delta_e``: the stiffness follows the magnetization, ``khat*(1 + delta_e*((M/Ms)^2 - (M0/Ms)^2))``
   with delta_e 0.3-0.8;
+* ``input_lag``: the field in the rod lags the recorded one by 2-5 samples and is delayed by 0-1.5 (a coil's
+  L/R or an amplifier's bandwidth);
 * ``input_map``: a saturating amplifier, the field in the rod ``h_s*tanh(H/h_s)`` of the recorded one
   (h_s 0.4-0.8 times the peak field; strength blends it with the identity);
 * ``sensor_map``: each output sensor reads ``y + s*(q2*v^2 + q3*v^3)`` (v: the output over its range, s
@@ -264,11 +266,26 @@ def _mains_pickup(signal, strength, effect_rng, fine_time):
 SENSOR_GENERATORS = {"sensor_map": _sensor_map, "sensor_drift": _sensor_drift, "mains_pickup": _mains_pickup}
 
 
-def _input_mapped(field, strength, effect_rng):
+def _input_mapped(field, strength, effect_rng, fine_time, fs):
     """The field (A/m) a saturating amplifier delivers for the recorded (commanded) ``field``:
     ``h_s*tanh(H/h_s)``, blended with the identity by ``strength`` (0: none)."""
     h_s = effect_rng.uniform(0.4, 0.8) * float(np.max(np.abs(field)))
     return np.ascontiguousarray(field + strength * (h_s * np.tanh(field / h_s) - field))
+
+
+def _input_lagged(field, strength, effect_rng, fine_time, fs):
+    """The field (A/m) in the rod behind a coil's L/R: the recorded one delayed by 0-1.5 samples and lagged
+    by 2-5 samples (both times ``strength``), integrated on the fine grid."""
+    delay = strength * effect_rng.uniform(0.0, 1.5) / fs
+    tau = strength * effect_rng.uniform(2.0, 5.0) / fs
+    delayed = np.interp(fine_time - delay, fine_time, field)
+    if tau <= 0.0:
+        return np.ascontiguousarray(delayed)
+    return np.ascontiguousarray(lti_response(fine_time, delayed, [[-1 / tau]], [1 / tau], [1.0], start="steady"))
+
+
+#: Generators of the input side's effects: the field in the rod for the recorded one.
+INPUT_GENERATORS = {"input_map": _input_mapped, "input_lag": _input_lagged}
 
 
 def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: float = 1.0, output: str = "both",
@@ -307,7 +324,8 @@ def make_recording_with_truth(effect: str = "none", seed: int = 0, strength: flo
     material = dict(a=a, k=k, alpha=alpha, Ms=Ms, c=c, curve=curve)
     row, kind = _magnetic_row(effect, strength, effect_rng, material, field, fine_time, amplitude)
     # the field in the rod: the recorded one, or what a saturating amplifier makes of it (input_map)
-    applied = _input_mapped(field, strength, effect_rng) if effect == "input_map" else field
+    applied = INPUT_GENERATORS[effect](field, strength, effect_rng, fine_time, fs) if effect in INPUT_GENERATORS \
+        else field
     magnetization = simulate_members(fine_time, applied, np.array([[row[c_] for c_ in MAGNETIC_COLUMNS]]), kind,
                                      25.0, AMBIENT_TEMPERATURE)[:, 0]
     M0 = float(np.median(magnetization))

@@ -78,8 +78,8 @@ import numpy as np
 from ..physics.fem import FEMRod
 from ..physics.constants import PAPER_DAMPING, PAPER_STIFFNESS
 from ..physics.transducers import RodParams
-from .effects import (DRIFT_NAMES, EFFECTS, INPUT_MAP_NAMES, MAINS_MIN_CYCLES, MAINS_NAMES, PAPER_MS,
-                      SENSOR_MAP_NAMES, applicable_effects, effect, extension_parameters, mapped_field)
+from .effects import (DRIFT_NAMES, EFFECTS, INPUT_DYNAMICS_NAMES, INPUT_MAP_NAMES, MAINS_MIN_CYCLES, MAINS_NAMES,
+                      PAPER_MS, SENSOR_MAP_NAMES, applicable_effects, effect, extension_parameters, mapped_field)
 from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, first_order_system, lti_response,
                       second_order_system, simulate_members, step_classes, step_lti,
                       varying_stiffness_response)
@@ -188,13 +188,15 @@ class Model:
         """Simulated M (A/m) for each values dict: shape (T, len(values_list))."""
         rows = np.array([self.magnetic_row(v) for v in values_list])
         kind = 0 if self.structure.curve == "ising" else 1
-        maps = np.array([[v.get(n, 0.0) for n in INPUT_MAP_NAMES] for v in values_list])
+        # the input side: its static map and its dynamics (zeros: the recorded field itself)
+        maps = np.array([[v.get(n, 0.0) for n in INPUT_MAP_NAMES + INPUT_DYNAMICS_NAMES] for v in values_list])
         out = np.empty((self.recording.size, len(values_list)))
         # members that share an input map share one field (one bank call per distinct map)
         for shape in np.unique(maps, axis=0):
             group = np.flatnonzero(np.all(maps == shape, axis=1))
             unique, inverse = np.unique(rows[group], axis=0, return_inverse=True)
-            field = mapped_field(self.recording.field, *shape)
+            field = mapped_field(input_dynamics(self.recording.time, self.recording.field, *shape[4:],
+                                                self._classes), *shape[:4])
             simulated = simulate_members(self.recording.time, field, np.ascontiguousarray(unique), kind,
                                          self.max_field_step, AMBIENT_TEMPERATURE)
             out[:, group] = simulated[:, np.asarray(inverse).reshape(-1)]
@@ -279,6 +281,16 @@ def relative_stiffness_change(magnetization, values):
     ``delta_e*(m^2 - m0^2) + delta_e_linear*(m - m0)``, m = M/Ms, zero at the bias M0."""
     m, m0 = magnetization / values["Ms"], values["M0"] / values["Ms"]
     return values.get("delta_e", 0.0) * (m ** 2 - m0 ** 2) + values.get("delta_e_linear", 0.0) * (m - m0)
+
+
+def input_dynamics(time, field, tau, delay, classes=None):
+    """The ``input_lag`` family: the field (A/m) in the material for the recorded ``field``, delayed by
+    ``delay`` (s; the first sample held before the record starts) and then lagged by ``tau`` (s),
+    ``tau*H' = H_rec(t - delay) - H``, starting settled; the recorded field itself when both vanish."""
+    if tau == 0.0 and delay == 0.0:
+        return field
+    out = np.interp(time - delay, time, field) if delay > 0.0 else field
+    return np.ascontiguousarray(_lag(time, out, tau, classes))
 
 
 def channel_range(signal):

@@ -82,9 +82,15 @@ def test_every_effect_has_words_a_slot_and_a_confusable_entry():
 
 
 def test_rate_and_mechanical_flags_match_the_physics():
-    """A lag, a rod mode and eddy loss need a real time axis; the mechanics-side effects need a displacement."""
-    assert set(registry.RATE_EFFECTS) == {"eddy_current", "sensor_lag", "rod_dynamics"}
-    assert set(registry.MECHANICAL_EFFECTS) == {"quadratic_magnetostriction", "rod_dynamics", "delta_e"}
+    """A lag, a rod mode and eddy loss need a real time axis, a static law does not; the mechanics-side
+    effects need a displacement, the magnetic and input-side ones do not."""
+    static = {"field_bias", "anhysteretic_shape", "small_loop", "input_map", "sensor_map",
+              "quadratic_magnetostriction", "delta_e"}
+    assert {"eddy_current", "sensor_lag", "rod_dynamics"} <= set(registry.RATE_EFFECTS)
+    assert not static & set(registry.RATE_EFFECTS)
+    assert {"quadratic_magnetostriction", "rod_dynamics", "delta_e"} <= set(registry.MECHANICAL_EFFECTS)
+    assert not {"thermal_drift", "eddy_current", "field_bias", "anhysteretic_shape", "small_loop", "input_map",
+                "sensor_lag", "sensor_map"} & set(registry.MECHANICAL_EFFECTS)
     magnetic_only = make_recording("none", 4, output="magnetization", n_samples=5000)[0]
     assert not set(applicable_effects(magnetic_only, Structure("none"))) & set(registry.MECHANICAL_EFFECTS)
 

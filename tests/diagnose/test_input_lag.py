@@ -1,0 +1,57 @@
+"""The input dynamics (``input_lag``): the field in the material lags the recorded one (a coil's L/R, an
+amplifier's bandwidth). Its kernel against an independent integration, and an honest name or tie."""
+
+import numpy as np
+import pytest
+
+from hyst_gym.diagnose import diagnose, make_recording
+from hyst_gym.diagnose.kernels import AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, simulate_members
+from hyst_gym.diagnose.model import Model, Structure, base_parameters, extension_parameters, input_dynamics
+
+
+def test_the_lag_is_a_first_order_filter_and_the_delay_a_shift():
+    """A lag tau: the closed-form response of tau*y' = u - y to a field linear between samples (the
+    kernel's first-order hold), started settled; a delay of three steps: the field three samples
+    earlier, the first one held."""
+    time = np.sort(np.concatenate([np.linspace(0.0, 0.02, 400), [0.00123, 0.0111]]))  # non-uniform steps
+    field = 5e4 * np.sin(2 * np.pi * 150 * time) + 2e4 * np.sign(np.sin(2 * np.pi * 40 * time))
+    tau = 3e-4
+    expected = np.empty_like(field)
+    expected[0] = field[0]
+    for i, h in enumerate(np.diff(time)):
+        slope = (field[i + 1] - field[i]) / h  # y = u - tau*slope + (y0 - u0 + tau*slope)*exp(-h/tau)
+        expected[i + 1] = field[i + 1] - tau * slope + (expected[i] - field[i] + tau * slope) * np.exp(-h / tau)
+    np.testing.assert_allclose(input_dynamics(time, field, tau, 0.0), expected, rtol=0, atol=1e-6 * np.ptp(field))
+    uniform = np.linspace(0.0, 0.01, 201)
+    drive = 5e4 * np.sin(2 * np.pi * 220 * uniform)
+    delayed = input_dynamics(uniform, drive, 0.0, 3 * (uniform[1] - uniform[0]))
+    np.testing.assert_allclose(delayed[3:], drive[:-3], rtol=0, atol=1e-9 * np.ptp(drive))
+    assert np.all(delayed[:3] == drive[0])
+    assert input_dynamics(uniform, drive, 0.0, 0.0) is drive  # the identity when both vanish
+
+
+def test_the_model_simulates_the_loop_on_the_lagged_field():
+    recording = make_recording("none", 2, output="magnetization", n_samples=1000)[0]
+    structure = Structure("none", "ising", "input_lag")
+    base = base_parameters(recording, structure)
+    values = {n: p.value for n, p in base.items()}
+    model = Model(recording, structure, {**base, **extension_parameters(recording, structure, values)}, 200.0)
+    values = dict(model.values(), tau_in=4e-5, delay_in=1e-5)
+    lagged = input_dynamics(recording.time, recording.field, 4e-5, 1e-5)
+    row = np.array([model.magnetic_row(values)])
+    expected = simulate_members(recording.time, lagged, row, 0, 200.0, AMBIENT_TEMPERATURE)[:, 0]
+    np.testing.assert_array_equal(model.magnetization([values])[:, 0], expected)
+    assert list(MAGNETIC_COLUMNS)  # the row is the kernel's, column for column
+
+
+@pytest.mark.parametrize("seed", [7, 8])
+def test_an_input_lag_is_named_or_tied_with_a_sensor_lag_never_named_as_one(seed):
+    """From the magnetization alone an input lag and a sensor lag bend the loop alike: the verdict is
+    ``input_lag``, or ``ambiguous`` with both and the measurement that separates them; never the sensor lag
+    alone."""
+    recording = make_recording("input_lag", seed, output="magnetization", n_samples=2000)[0]
+    report = diagnose(recording, progress=False)
+    tied = {c.effect for c in report.tied}
+    assert report.verdict == "input_lag" or (report.verdict == "ambiguous" and {"input_lag", "sensor_lag"} <= tied)
+    if report.verdict == "ambiguous":
+        assert "Hall probe" in report.advice
