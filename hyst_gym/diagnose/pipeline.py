@@ -175,6 +175,8 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
 
     bar.set_postfix_str("calibrate")
     base = calibrate(split, structure, progress=bar, workers=workers)
+    if base.failure is not None:
+        raise ValueError(f"{recording.source}: the base model could not be fitted to this recording ({base.failure})")
     bar.set_postfix_str("locate")
     located = locate.locate_mismatch(base, split.noise, windows=locate_windows)
     bar.set_postfix_str("candidates")

@@ -139,6 +139,22 @@ def test_a_failed_candidate_is_left_out_with_the_reason_in_the_report(short, mon
     assert report.verdict != "eddy_current"
 
 
+def test_a_failed_base_fit_is_a_one_line_error(short, monkeypatch):
+    from hyst_gym.diagnose import pipeline
+
+    real = pipeline.calibrate
+
+    def failing(split, structure, **kwargs):
+        fit = real(split, structure, n_points=8, keep=1)
+        fit.failure = "the least-squares solver stopped: test"
+        return fit
+
+    monkeypatch.setattr(pipeline, "calibrate", failing)
+    with pytest.raises(ValueError, match="the base model could not be fitted to this recording .*: test") as error:
+        diagnose(short, progress=False)
+    assert "\n" not in str(error.value)
+
+
 # ---------------------------------------------------------------------------- the commands
 
 
