@@ -33,6 +33,9 @@ Cases (truth -> forms -> verdicts that count as right):
 ``continuum_rod``        fixed-free rod with a tip mass, 6 longitudinal modes from           {rod_dynamics}
                          beta*L*tan(beta*L) = rod mass / tip mass, constant or Rayleigh
                          damping; driven by a log chirp reaching 1.5-3x the first resonance
+``input_dynamics``       true field = a filtered copy of the recorded one (an amplifier's    {input_lag}
+                         bandwidth, a coil's L/R): a second-order low-pass (damping
+                         0.4-1), a first-order lag with a delay, or a pure delay
 ``two_phase_rod``        two magnetic phases in parallel (different a, Ms, k, c): the       {unexplained, ambiguous}
                          mixture drives both channels, or only phase 1 is magnetostrictive
 =======================  ============================================================  ==========================
@@ -116,6 +119,9 @@ CASES = {c.name: c for c in (
              "additive mains pickup with 3rd and 5th harmonics"),
     CaseSpec("continuum_rod", frozenset({"rod_dynamics"}), ("displacement", "both"),
              ("modal_constant_damping", "modal_rayleigh_damping"), "fixed-free rod with a tip mass, 6 modes"),
+    CaseSpec("input_dynamics", frozenset({"input_lag"}), CHANNEL_SETS,
+             ("second_order", "first_order_delay", "pure_delay"),
+             "true field a filtered or delayed copy of the recorded one (amplifier bandwidth, coil L/R)"),
     CaseSpec("two_phase_rod", frozenset({"unexplained", "ambiguous"}), CHANNEL_SETS, ("mixture", "split_roles"),
              "two magnetic phases in parallel (fits no slot)"),
 )}
@@ -467,6 +473,8 @@ def setup(case: str, seed: int, n_samples: int | None = None) -> Setup:
         p = {"mass_ratio": rng.uniform(0.5, 3.0), "zeta1": rng.uniform(0.01, 0.05),
              "rayleigh_stiff_share": rng.uniform(0.3, 0.8)}
         knob, knob_max = "mass_ratio", 8.0
+    elif case == "input_dynamics":
+        p, knob, knob_max = _input_dynamics_draw(rng, form, base.conditions.sample_rate), "scale", 20.0
     elif case == "two_phase_rod":
         def ratio():
             return ir._log_uniform(rng, 1.5, 3.0) ** rng.choice([-1.0, 1.0])
@@ -476,6 +484,32 @@ def setup(case: str, seed: int, n_samples: int | None = None) -> Setup:
         knob, knob_max = "w", 0.5
     return Setup(case=case, seed=int(seed), base=base, time=time, field=field, excitation=info,
                  numerics=numerics, form=form, params=p, knob=knob, knob_max=knob_max)
+
+
+def _input_dynamics_draw(rng, form: str, sample_rate: float) -> dict:
+    """Times (s) of the input filter: a second-order low-pass at 1/(2*pi*(2-6 samples)) with damping 0.4-1,
+    a lag of 2-6 samples after a delay of 0.5-2, or a delay of 1-4 samples; ``scale`` multiplies them."""
+    dt = 1.0 / sample_rate
+    if form == "second_order":
+        return {"tau": rng.uniform(2.0, 6.0) * dt, "damping": rng.uniform(0.4, 1.0), "delay": 0.0, "scale": 1.0}
+    if form == "first_order_delay":
+        return {"tau": rng.uniform(2.0, 6.0) * dt, "delay": rng.uniform(0.5, 2.0) * dt, "scale": 1.0}
+    return {"tau": 0.0, "delay": rng.uniform(1.0, 4.0) * dt, "scale": 1.0}
+
+
+def input_filter(time, field, form: str, p: dict) -> np.ndarray:
+    """The field (A/m) in the rod for the recorded ``field`` (uniform ``time``): delayed (linear
+    interpolation, the first sample held), then low-passed (first or second order, scipy's exact
+    discretization of the refined input); the recorded field at ``scale`` 0."""
+    tau, delay = p["tau"] * p["scale"], p["delay"] * p["scale"]
+    dt = float(time[1] - time[0])
+    steps = np.arange(field.size, dtype=float)
+    out = np.interp(steps - delay / dt, steps, field) if delay > 0.0 else field
+    if tau <= 0.0:
+        return out
+    if form == "second_order":
+        return ir.lti_response([1.0], [tau ** 2, 2.0 * p["damping"] * tau, 1.0], out, dt)
+    return ir.lti_response([1.0], [tau, 1.0], out, dt)
 
 
 def second_material(mat: ir.Material, p: dict) -> ir.Material:
@@ -534,6 +568,8 @@ def forward(st: Setup) -> dict:
     field = st.field
     if case == "saturating_amplifier":
         field = amplifier(field, st.form, p["overdrive"], p["asymmetry"])
+    if case == "input_dynamics":
+        field = input_filter(st.time, field, st.form, p)
     if case == "heating_other_law":
         theta = thermal_rise(st.time, field, p, p["rise"])
         a_scale, ms_scale = material_scales(theta, p)
