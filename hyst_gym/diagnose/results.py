@@ -95,6 +95,19 @@ class Report:
     identifiability: dict = dataclass_field(default_factory=dict)
     #: continuum mechanics tried when the residual lives near or above the first resonance (:func:`try_continuum`)
     continuum: dict = dataclass_field(default_factory=dict)
+    #: every recording diagnosed together (empty: the baseline's own, one record)
+    recordings: list = dataclass_field(default_factory=list, repr=False)
+
+    def next_drive(self, path=None, seed: int = 0):
+        """The drive that best separates the hypotheses this report leaves standing
+        (:func:`.next_drive.design_next_drive`), written as CSV ``time,field`` to ``path`` if given; None (and
+        nothing written) when the verdict is a confident single name."""
+        from .next_drive import design_next_drive
+
+        design = design_next_drive(self, records=self.recordings or None, seed=seed)
+        if design is not None and path is not None:
+            design.write_csv(path)
+        return design
 
     @property
     def slot(self) -> str | None:
