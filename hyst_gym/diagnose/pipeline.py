@@ -24,6 +24,7 @@ from .continuum import CONTINUUM_POWER_SHARE, resonance_power_share, try_continu
 from .decide import EXPLAINED_RMSE, MATERIAL_SHARE, check_plausibility, decide
 from .effects import RATE_EFFECTS, applicable_effects
 from .fit import Split
+from .joint import joint_decision
 from .hypothesize import calibrate, cross_start, fit_candidate, guard_base
 from .identifiability import describe_direction, invisible_effects, unidentified_directions
 from .model import MECHANICS_TOLERANCE, Structure
@@ -48,7 +49,9 @@ DEFAULT_WORKERS = max(1, min(4, os.cpu_count() or 1))
 def diagnose(recording, model: str = "lumped", anhysteretic: str = "ising", fit_mechanics: bool = True,
              holdout: float = 0.3, effects=None, progress: bool = True, locate_windows: int = 4,
              mechanics_tolerance: float = MECHANICS_TOLERANCE, workers: int | None = None) -> Report:
-    """Run the five stages on a recording (a :class:`Recording` or a CSV path).
+    """Run the five stages on a recording (a :class:`Recording` or a CSV path), or on several recordings of
+    the same system under different drives (a list or tuple of them): then the first is diagnosed alone and
+    every hypothesis is refitted to all of them jointly (:mod:`.joint`). A list of one is the one record.
 
     Parameters
     ----------
@@ -74,6 +77,15 @@ def diagnose(recording, model: str = "lumped", anhysteretic: str = "ising", fit_
     # Small dense linear algebra (4x4 matrix exponentials, SVDs of tall Jacobians) runs slower
     # with BLAS threads than without: one 8000-sample diagnosis took 61 s with them and 8.4 s
     # without on a loaded 2-core machine.
+    if isinstance(recording, (list, tuple)):
+        if not recording:
+            raise ValueError("recording: an empty list; give one recording or several")
+        recordings = [r if isinstance(r, Recording) else read_recording(r) for r in recording]
+        if len(recordings) > 1:
+            with threadpool_limits(limits=1, user_api="blas"):
+                return _diagnose_jointly(recordings, model, anhysteretic, fit_mechanics, holdout, effects, progress,
+                                         locate_windows, mechanics_tolerance, workers)
+        recording = recordings[0]
     with threadpool_limits(limits=1, user_api="blas"):
         return _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, progress,
                          locate_windows, mechanics_tolerance, workers)
@@ -215,6 +227,41 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
                     notes=decision.notes + notes_on_priors + _failure_notes(candidates), skipped=skipped,
  material_structure=structure_left,
                     identifiability={"priors": release, "unidentified": directions}, continuum=continuum)
+    report.explanation = explain(report)
+    report.seconds = _time.perf_counter() - started
+    return report
+
+
+def _diagnose_jointly(recordings, model, anhysteretic, fit_mechanics, holdout, effects, progress, locate_windows,
+                      mechanics_tolerance, workers) -> Report:
+    """The first record diagnosed alone, then every hypothesis refitted to all the records (:mod:`.joint`)."""
+    started = _time.perf_counter()
+    first = recordings[0]
+    for other in recordings[1:]:
+        check_usable(other)
+        if other.channels != first.channels:
+            raise ValueError(f"{other.source}: records channels {', '.join(other.channels)} but {first.source} "
+                             f"records {', '.join(first.channels)}; a joint diagnosis needs the same channels")
+    single = _diagnose(first, model, anhysteretic, fit_mechanics, holdout, effects, progress, locate_windows,
+                       mechanics_tolerance, workers)
+    base, base_heldout, candidates, decision, per_record, structure_left = joint_decision(
+        single, recordings, holdout, workers)
+    chosen = decision.chosen
+    heldout_by_channel = {"baseline": per_record[0]["baseline_heldout_rmse_by_channel"]}
+    if chosen is not None:
+        heldout_by_channel["verdict"] = per_record[0]["verdict_heldout_rmse_by_channel"]
+    notes = decision.notes + [f"diagnosed jointly from {len(recordings)} records (parameters shared, drives and "
+                              "start states per record); the plausibility checks, the location and the priors' "
+                              f"notes are the first record's ({first.source})"] + _failure_notes(candidates)
+    report = Report(source=" + ".join(r.source for r in recordings), verdict=decision.verdict,
+                    confidence=decision.confidence, explanation="", baseline=base, baseline_heldout=base_heldout,
+                    candidates=candidates, located=single.located,
+                    improvement=float(chosen.improvement) if chosen else 0.0, structure=single.structure,
+                    split_index=single.split_index, noise=single.noise, seconds=0.0, chosen=chosen,
+                    heldout_by_channel=heldout_by_channel, tied=decision.tied, advice=decision.advice, notes=notes,
+                    skipped=single.skipped, material_structure=structure_left,
+                    identifiability=single.identifiability, continuum={}, recordings=list(recordings),
+                    per_record=per_record)
     report.explanation = explain(report)
     report.seconds = _time.perf_counter() - started
     return report

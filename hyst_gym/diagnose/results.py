@@ -97,6 +97,8 @@ class Report:
     continuum: dict = dataclass_field(default_factory=dict)
     #: every recording diagnosed together (empty: the baseline's own, one record)
     recordings: list = dataclass_field(default_factory=list, repr=False)
+    #: each record's held-out errors when several were diagnosed together (:mod:`.joint`); empty for one
+    per_record: list = dataclass_field(default_factory=list)
 
     def next_drive(self, path=None, seed: int = 0):
         """The drive that best separates the hypotheses this report leaves standing
@@ -140,4 +142,4 @@ class Report:
             "split": {"fit_samples": self.split_index, "heldout_from_time_s": None},
             "material_structure": self.material_structure, "identifiability": self.identifiability,
             "continuum": self.continuum, "seconds": self.seconds,
-        }
+        } | ({"records": self.per_record} if self.per_record else {})
