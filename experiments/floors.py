@@ -171,8 +171,8 @@ overheat (T above the limit).
    t). The largest sum_{j<=t} Psi(|H_j|)^2 over slew- and field-limited paths from H = 0 under that
    constraint is bounded by weak Lagrangian duality: for any lambda_s >= 0 it is at most
    B*sum lambda_s + max over paths of sum_j [Psi(|H_j|)^2 - mu_j * heat_j], mu_j = sum_{s>=j} lambda_s
-   decay^(s-j), a dynamic programme on a grid of a half slew step: a path's |H| is replaced by its
-   grid floor (which moves at most two cells per step), with the reward at the cell's top and the heat
+   decay^(s-j), a dynamic programme on a grid of a quarter slew step: a path's |H| is replaced by its
+   grid floor (which moves at most four cells per step), with the reward at the cell's top and the heat
    at the floors (a sign change within a step is allowed for), so every admissible path is dominated.
    The multipliers are searched over a family (a level from an onset step on, decaying before it:
    the shape of the hold-at-the-limit optimum); any member is valid and the smallest is kept. Each
@@ -186,6 +186,9 @@ overheat (T above the limit).
    every step and piece. So the floor holds for every policy, overheating or not.
 6. **The floor** is sqrt(mean over scored t of sum_k w_k/(J_k + G^2/sigma^2 * ceiling_k,t)), the highest
    over the half widths d tried (each valid).
+7. **The k task** gets the k-known bound (knowing k can only help: [J^-1]_aa >= 1/J_aa), with Psi the
+   largest over five k across its prior, each k's envelope raised bin by bin by its own second and
+   third sets (the former single factor of 1.30 on the whole curve is gone).
 
 What is sampled rather than proven, and checked:
 
