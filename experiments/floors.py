@@ -187,8 +187,8 @@ overheat (T above the limit).
 6. **The floor** is sqrt(mean over scored t of sum_k w_k/(J_k + G^2/sigma^2 * ceiling_k,t)), the highest
    over the half widths d tried (each valid).
 7. **The k task** gets the k-known bound (knowing k can only help: [J^-1]_aa >= 1/J_aa), with Psi the
-   largest over five k across its prior, each k's envelope raised bin by bin by its own second and
-   third sets (the former single factor of 1.30 on the whole curve is gone).
+   largest over five k across its prior, raised bin by bin by the second and third sets (each run on
+   every k): the former single factor of 1.30 on the whole curve is gone.
 
 What is sampled rather than proven, and checked:
 

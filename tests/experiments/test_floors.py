@@ -129,11 +129,12 @@ def test_no_admissible_input_collects_more_than_the_ceiling(hot_calibrate, budge
     assert bound[-1] < 0.9 * ceiling.free[-1]      # and the budget binds
 
 
-def test_cli_rejects_bad_arguments_in_one_line(capsys):
+def test_cli_rejects_bad_arguments_in_one_line(capsys, tmp_path):
     assert main(["--tasks", "hyst_gym/NoSuchTask-v0"]) == 2
     assert main(["--paths", "0"]) == 2
+    assert main(["--markdown-only", "--out", str(tmp_path)]) == 2
     errors = capsys.readouterr().err.strip().splitlines()
-    assert len(errors) == 2 and "--tasks" in errors[0] and "--paths" in errors[1]
+    assert len(errors) == 3 and "--tasks" in errors[0] and "--paths" in errors[1] and "floors.json" in errors[2]
     process = subprocess.run([sys.executable, "-m", "experiments.floors", "--paths", "-3"], capture_output=True,
                              text=True)
     assert process.returncode == 2 and "Traceback" not in process.stderr
