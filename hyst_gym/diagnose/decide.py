@@ -153,7 +153,8 @@ def _check_bounds(out: Plausibility, effect, fit):
             continue
         value = fit.values[name]
         span = p.upper - p.lower
-        if min(abs(value - p.lower), abs(p.upper - value)) < 1e-3 * span and value != 0.0:
+        lower = float("inf") if name in effect.absent_at_zero and p.lower == 0.0 else abs(value - p.lower)
+        if min(lower, abs(p.upper - value)) < 1e-3 * span and value != 0.0:
             out.reject(f"{name} = {value:.4g} sits at the bound of its physical range "
                        f"[{p.lower:.4g}, {p.upper:.4g}]")
 

@@ -437,6 +437,8 @@ class Effect:
     swaps_curve : it swaps the anhysteretic curve (Ising <-> Langevin)
     channel_terms : per output channel, its coefficients that are linear in the recorded output
     search_ranges : its parameters whose bounds are search ranges, not physical walls
+    absent_at_zero : its parameters whose lower bound 0 means "this term is absent" (a member of the
+        family), not a wall; their upper bound is still one
     slopes : ``(values, channels, u) -> [(what, slope)]`` of a static map, which must be monotone
     loop_offset : the parameter that must show as a horizontal offset of the recorded loop
     details : ``(values, recording) -> str`` added to the report's sentence
@@ -458,6 +460,7 @@ class Effect:
     swaps_curve: bool = False
     channel_terms: Mapping = dataclass_field(default_factory=dict)
     search_ranges: tuple = ()
+    absent_at_zero: tuple = ()
     slopes: Callable | None = None
     loop_offset: str | None = None
     details: Callable | None = None
@@ -518,8 +521,8 @@ _REGISTERED = (
               "bandwidth: a first-order lag tau_in and a delay delay_in)",
         parameter_names=INPUT_DYNAMICS_NAMES, parameters=_input_dynamics_parameters, identified_by=BestDetermined(),
         applies=_always, rate_dependent=True, rescue=("tau_in",), starts=_input_dynamics_starts,
-        # no delay (0) is where the family starts, not a wall: a fit that ends there has found a pure lag
-        search_ranges=("delay_in",),
+        # no lag or no delay (0) is a member of the family (a pure delay, a pure lag), not a wall
+        absent_at_zero=INPUT_DYNAMICS_NAMES,
         confusable={"sensor_lag": _everywhere(_FIELD_AT_ROD),
                     "eddy_current": _everywhere(_SLOW + "; an input lag shifts the loop in time, eddy loss "
                                                 "widens it")}),

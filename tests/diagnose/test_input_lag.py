@@ -55,3 +55,23 @@ def test_an_input_lag_is_named_or_tied_with_a_sensor_lag_never_named_as_one(seed
     assert report.verdict == "input_lag" or (report.verdict == "ambiguous" and {"input_lag", "sensor_lag"} <= tied)
     if report.verdict == "ambiguous":
         assert "Hall probe" in report.advice
+
+
+def test_a_pure_delay_is_a_member_of_the_family_not_a_fit_at_a_wall():
+    """A field delayed by three samples and not lagged: the fit's lag ends at zero, which is no lag (a member of
+    the family), so the candidate is not rejected as pinned at a bound; the verdict names the input dynamics, or
+    ties them with a sensor lag."""
+    base = make_recording("none", 3, output="magnetization", n_samples=2000)[0]
+    dt = float(base.time[1] - base.time[0])
+    delayed = input_dynamics(base.time, base.field, 0.0, 3 * dt)
+    row = np.array([[dict(a=6000.0, k=1500.0, alpha=-0.01, Ms=8e5, c=0.2, H0=0.0, k_e=0.0, heating=0.0, tau_th=1.0,
+                          beta_Ms=0.0, chi_r=0.0, heating_exponent=2.0)[c] for c in MAGNETIC_COLUMNS]])
+    clean = simulate_members(base.time, delayed, row, 0, 25.0, AMBIENT_TEMPERATURE)[:, 0]
+    noisy = clean + 1e-3 * np.ptp(clean) * np.random.default_rng(0).standard_normal(clean.size)
+    from hyst_gym.diagnose import Recording
+
+    report = diagnose(Recording(time=base.time, field=base.field, magnetization=noisy), progress=False)
+    lag = next(c for c in report.candidates if c.effect == "input_lag")
+    assert not any("sits at the bound" in reason for reason in lag.plausibility.reasons)
+    assert report.verdict == "input_lag" or (report.verdict == "ambiguous"
+                                             and "input_lag" in {c.effect for c in report.tied})
