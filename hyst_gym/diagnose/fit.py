@@ -131,9 +131,11 @@ def local_fit(model: Model, noise: dict, mask, start: dict | None = None, max_nf
     failure = None
     if names:
         try:
-            result = scipy.optimize.least_squares(objective, x0, jac=objective.jacobian, bounds=(lower, upper),
-                                                  method="trf", x_scale="jac", max_nfev=max_nfev,
-                                                  xtol=tolerance, ftol=tolerance)
+            # the solver's trust-region arithmetic can overflow in a step it then rejects: not the user's concern
+            with np.errstate(over="ignore"):
+                result = scipy.optimize.least_squares(objective, x0, jac=objective.jacobian, bounds=(lower, upper),
+                                                      method="trf", x_scale="jac", max_nfev=max_nfev,
+                                                      xtol=tolerance, ftol=tolerance)
             x, residual, J = result.x, result.fun, result.jac
         except (ValueError, np.linalg.LinAlgError) as error:  # the solver's linear algebra gave up
             failure = f"the least-squares solver stopped: {str(error).splitlines()[0] if str(error) else error!r}"
