@@ -138,3 +138,13 @@ def test_bad_arguments_give_one_line_errors(tmp_path, tied, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "is a folder" in err[0]
     assert read_recording(path).size == recording.size
+
+
+def test_a_low_confidence_name_stands_with_its_runner_up_and_an_open_direction_with_none():
+    recording = make_recording("input_lag", 7, output="magnetization", n_samples=2000)[0]
+    report = diagnose(recording, effects=LAGS, progress=False, workers=1)
+    assert report.verdict == "input_lag" and report.confidence < 0.8
+    runner = max((c for c in report.candidates if c is not report.chosen), key=lambda c: c.improvement)
+    names = [h.name for h in standing_hypotheses(report)]
+    assert names[:2] == ["input_lag", runner.effect]
+    assert ("none" in names) == bool(report.identifiability["unidentified"])
