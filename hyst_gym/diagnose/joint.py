@@ -7,6 +7,10 @@ vectors of the records' fitting blocks stacked (each record's channels over that
 Per record stay: the drive, the start state (each simulation starts from the model's start state at the
 record's first sample: demagnetized, the mechanics settled) and the split into fitting and held-out blocks.
 
+The sensors are shared, and so is their noise: each channel's noise level is the smallest of the records'
+estimates (:func:`.model.noise_level`, from second differences, can only be raised by the signal's own content,
+which a fast drive -- a designed one, say -- puts there), so no record is weighted down by its drive.
+
 Each refit is scored on every record's held-out block; the verdict comes from the decision stage
 (:func:`.decide.decide`) on the stacked held-out residuals, with the same bars. What stays single-record:
 the plausibility checks (the block consistency is checked on the first record, with the joint parameters),
@@ -17,6 +21,8 @@ the same range.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import scipy.optimize
@@ -112,10 +118,16 @@ def joint_candidate(candidate: Candidate, splits) -> tuple[Candidate, list]:
     return joint, per_record
 
 
+def shared_noise(splits) -> list:
+    """``splits`` with one noise level per channel, the smallest of their estimates (module docstring)."""
+    noise = {ch: min(s.noise[ch] for s in splits) for ch in splits[0].noise}
+    return [replace(s, noise=noise) for s in splits]
+
+
 def joint_decision(single, recordings, holdout: float, workers: int = 1):
     """The report ``single`` (of the first record) redone on every record of ``recordings`` (module docstring).
-    Returns (base fit, base held-out RMSE, joint candidates, decision, per-record errors, structure left)."""
-    splits = [Split.of(r, holdout) for r in recordings]
+    Returns (base fit, base held-out RMSE, joint candidates, decision, per-record errors, structure left, noise)."""
+    splits = shared_noise([Split.of(r, holdout) for r in recordings])
     base = joint_fit(single.baseline, splits)
     base_records, base_residual = heldout_per_record(base, splits)
     base_heldout = float(np.sqrt(np.mean(base_residual ** 2)))
@@ -141,4 +153,4 @@ def joint_decision(single, recordings, holdout: float, workers: int = 1):
             entry.update(verdict_heldout_rmse=chosen["heldout_rmse"],
                          verdict_heldout_rmse_by_channel=chosen["heldout_rmse_by_channel"])
         per_record.append(entry)
-    return base, base_heldout, candidates, decision, per_record, structure_left
+    return base, base_heldout, candidates, decision, per_record, structure_left, dict(splits[0].noise)

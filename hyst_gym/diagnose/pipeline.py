@@ -244,7 +244,7 @@ def _diagnose_jointly(recordings, model, anhysteretic, fit_mechanics, holdout, e
                              f"records {', '.join(first.channels)}; a joint diagnosis needs the same channels")
     single = _diagnose(first, model, anhysteretic, fit_mechanics, holdout, effects, progress, locate_windows,
                        mechanics_tolerance, workers)
-    base, base_heldout, candidates, decision, per_record, structure_left = joint_decision(
+    base, base_heldout, candidates, decision, per_record, structure_left, noise = joint_decision(
         single, recordings, holdout, workers)
     chosen = decision.chosen
     heldout_by_channel = {"baseline": per_record[0]["baseline_heldout_rmse_by_channel"]}
@@ -257,7 +257,7 @@ def _diagnose_jointly(recordings, model, anhysteretic, fit_mechanics, holdout, e
                     confidence=decision.confidence, explanation="", baseline=base, baseline_heldout=base_heldout,
                     candidates=candidates, located=single.located,
                     improvement=float(chosen.improvement) if chosen else 0.0, structure=single.structure,
-                    split_index=single.split_index, noise=single.noise, seconds=0.0, chosen=chosen,
+                    split_index=single.split_index, noise=noise, seconds=0.0, chosen=chosen,
                     heldout_by_channel=heldout_by_channel, tied=decision.tied, advice=decision.advice, notes=notes,
                     skipped=single.skipped, material_structure=structure_left,
                     identifiability=single.identifiability, continuum={}, recordings=list(recordings),
