@@ -296,10 +296,9 @@ def design_next_drive(report, records=None, seed: int = 0, design_points: int = 
     report's own); the limits are their largest, the drive has the first one's time axis."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
-    for name, value in (("design_points", design_points), ("refine_evaluations", refine_evaluations)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < (1 if name[0] == "d"
-                                                                                           else 0):
-            raise ValueError(f"{name} must be an integer >= {1 if name[0] == 'd' else 0}, got {value!r}")
+    for name, value, least in (("design_points", design_points, 1), ("refine_evaluations", refine_evaluations, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+            raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
     # small matrix exponentials run far slower with BLAS threads than without (as in .pipeline.diagnose)
     with threadpool_limits(limits=1, user_api="blas"):
         return _design(report, records, int(seed), int(design_points), int(refine_evaluations))
