@@ -17,9 +17,11 @@ A confident single name (confidence >= ``CONFIDENT``, no open direction) leaves 
 The drive is parametrized so that every admissible limit holds by construction (:meth:`DriveLimits.project`):
 ``SEGMENTS`` equal segments, each a sine at its own rate, amplitude and offset (rates separate an input lag
 from a sensor lag; amplitudes and offsets separate static maps), clipped to the largest recorded |field|,
-then passed through a slew-rate limiter at the largest recorded slew, then scaled down (if needed) so that
-the mean square field over any window of ``HEATING_WINDOW_SHARE`` of the record stays at or below the
-largest such value of the records. Scaling down keeps the first two limits.
+opened by a frame pulse to the largest recorded |field| and back (the static input map's frame is a
+record's largest |field|), then passed through a slew-rate limiter at the largest recorded slew, then the part
+after the pulse scaled down (if needed) so that the mean square field over any window of
+``HEATING_WINDOW_SHARE`` of the record stays at or below the largest such value of the records. Scaling down
+keeps the first two limits.
 
 The separation of two hypotheses on a drive is the mean square of the difference of their predicted outputs,
 each channel divided by its noise level (the first record's), channels concatenated: in units of the noise
@@ -87,15 +89,49 @@ class DriveLimits:
         heating = max(float(np.max(windowed_mean_square(r.field, window))) for r in recordings)
         return cls(peak, slew, heating, int(window))
 
-    def project(self, raw: np.ndarray, time: np.ndarray) -> np.ndarray:
-        """``raw`` (A/m) made admissible: clipped to ``peak``, slew-limited at ``slew``, scaled into ``heating``."""
-        clipped = np.clip(np.asarray(raw, dtype=np.float64), -self.peak, self.peak)
-        limited = _slew_limited(clipped, np.ascontiguousarray(np.diff(time)) * self.slew)
-        worst = float(np.max(windowed_mean_square(limited, self.window)))
-        if worst > self.heating:
-            # a factor below 1 keeps |field| <= peak and the slew; the margin absorbs rounding
-            limited = limited * (np.sqrt(self.heating / worst) * (1.0 - 1e-9))
-        return limited
+    def project(self, raw: np.ndarray, time: np.ndarray, sign: float = 1.0) -> np.ndarray:
+        """``raw`` (A/m) made admissible: clipped to ``peak``, slew-limited at ``slew``, scaled into ``heating``.
+
+        The drive opens with a frame pulse: a ramp at the largest slew from 0 to ``sign*peak`` and back to 0,
+        so that it reaches the records' largest |field| whatever the scaling of the rest. Why: the static input
+        map's frame is the record's largest |field| (:func:`.effects.mapped_field`), so one map's coefficients
+        mean the same map only on drives with the same peak. The rest (after the pulse) is scaled down, if
+        needed, until every window's mean square is within ``heating``; when the pulse alone breaks it, there
+        is no pulse and the whole drive is scaled (:meth:`keeps_frame` is then false)."""
+        raw = np.clip(np.asarray(raw, dtype=np.float64), -self.peak, self.peak)
+        max_steps = np.ascontiguousarray(np.diff(time)) * self.slew
+        ramp = int(np.ceil(self.peak / max(float(np.min(max_steps)), 1e-300)))
+        length = 2 * ramp + 3
+        if length < raw.size // 2:
+            framed = raw.copy()
+            framed[0] = 0.0
+            framed[1:ramp + 2] = np.sign(sign or 1.0) * self.peak
+            framed[ramp + 2:length] = 0.0
+            limited = _slew_limited(framed, max_steps)
+            pulse, rest = limited[:length], limited[length:]
+            if float(np.max(windowed_mean_square(np.concatenate([pulse, 0.0 * rest]), self.window))) <= self.heating:
+                return np.concatenate([pulse, rest * self._largest_scale(pulse, rest)])
+        limited = _slew_limited(raw, max_steps)
+        return limited * self._largest_scale(limited[:0], limited)
+
+    def _largest_scale(self, fixed: np.ndarray, scaled: np.ndarray) -> float:
+        """The largest factor in [0, 1] on ``scaled`` (after ``fixed``) that keeps every window's mean square
+        within ``heating``: 1 if it already does, else by bisection (the mean square grows with the factor).
+        A factor below 1 keeps |field| <= peak and the slew, as ``fixed`` ends at 0 where it joins."""
+        def worst(factor):
+            return float(np.max(windowed_mean_square(np.concatenate([fixed, factor * scaled]), self.window)))
+
+        if worst(1.0) <= self.heating:
+            return 1.0
+        low, high = 0.0, 1.0
+        for _ in range(40):
+            middle = 0.5 * (low + high)
+            low, high = (middle, high) if worst(middle) <= self.heating else (low, middle)
+        return low
+
+    def keeps_frame(self, field: np.ndarray) -> bool:
+        """Whether ``field`` reaches the records' largest |field| (the static input map's frame)."""
+        return bool(np.max(np.abs(field)) >= self.peak * (1 - 1e-9))
 
     def violations(self, field: np.ndarray, time: np.ndarray) -> list:
         """Which limits ``field`` (A/m, sampled at ``time``) breaks, in words (empty: admissible)."""
@@ -236,6 +272,8 @@ class _Designer:
         self.holdout_from = holdout_from
         self.channels = hypotheses[0].model.channels
         self.evaluations = 0
+        # the frame pulse goes to the side where the first record reaches its largest |field|
+        self.sign = float(np.sign(first.field[np.argmax(np.abs(first.field))]))
         n = self.time.size
         self.edges = np.linspace(0, n, SEGMENTS + 1).astype(int)
         dt = float(np.median(np.diff(self.time)))
@@ -256,7 +294,7 @@ class _Designer:
             amplitude = self.limits.peak * (0.1 + 0.9 * amplitude_unit)
             offset = self.limits.peak * 0.8 * (2.0 * offset_unit - 1.0)
             raw[a:b] = offset + amplitude * np.sin(2 * np.pi * rate * t)
-        return self.limits.project(raw, self.time)
+        return self.limits.project(raw, self.time, self.sign)
 
     def record(self, field: np.ndarray) -> Recording:
         return Recording(time=self.time[:field.size], field=field, metadata=dict(self.first.metadata),
@@ -326,6 +364,9 @@ def _design(report, records, seed, design_points, refine_evaluations):
     first_drive = designer.separations(np.clip(first.field, -limits.peak, limits.peak))
     pairs = []
     notes = []
+    if not limits.keeps_frame(field):
+        notes.append(f"The drive does not reach the records' largest |field| ({limits.peak:.4g} A/m) within the "
+                     "heating limit: a static input map's coefficients are in another frame on it.")
     names = [h.name for h in hypotheses]
     for (i, j), (whole, block), (first_whole, _) in zip(itertools.combinations(range(len(names)), 2),
                                                          designer.separations(field), first_drive):

@@ -51,11 +51,14 @@ def test_designed_drive_keeps_every_recorded_limit(tied, design):
     assert np.allclose(np.diff(design.time), np.diff(recording.time)[: design.time.size - 1])
     assert all(_independent_limits(design.field, design.time, recording, design.limits.window))
     assert design.limits.violations(design.field, design.time) == []
+    # it reaches the record's largest |field| (the input map's frame) on the record's side
+    extreme = recording.field[np.argmax(np.abs(recording.field))]
+    assert design.field[np.argmax(np.abs(design.field))] == pytest.approx(extreme, rel=1e-12)
 
 
 @settings(max_examples=40, deadline=None)
 @given(raw=arrays(np.float64, st.integers(50, 400), elements=st.floats(-1e6, 1e6)),
-       peak=st.floats(1.0, 1e5), slew=st.floats(1.0, 1e8), heating_share=st.floats(0.01, 1.0),
+       peak=st.floats(1.0, 1e5), slew=st.floats(1.0, 1e8), heating_share=st.floats(0.01, 1.5),
        window=st.integers(1, 60))
 def test_projection_keeps_the_limits_for_any_raw_drive(raw, peak, slew, heating_share, window):
     time = np.arange(raw.size) * 1e-4
@@ -65,6 +68,9 @@ def test_projection_keeps_the_limits_for_any_raw_drive(raw, peak, slew, heating_
     assert np.max(np.abs(np.diff(field))) <= slew * 1e-4 * (1 + 1e-9)
     assert np.max(windowed_mean_square(field, window)) <= limits.heating * (1 + 1e-9)
     assert limits.violations(field, time) == []
+    # no window's mean square can exceed peak^2: then the frame pulse always fits, if the drive is long enough
+    if limits.heating >= peak ** 2 and 2 * np.ceil(peak / (slew * 1e-4)) + 5 < raw.size // 2:
+        assert limits.keeps_frame(field)
 
 
 def test_the_design_is_deterministic(tied, design):
@@ -148,3 +154,15 @@ def test_a_low_confidence_name_stands_with_its_runner_up_and_an_open_direction_w
     names = [h.name for h in standing_hypotheses(report)]
     assert names[:2] == ["input_lag", runner.effect]
     assert ("none" in names) == bool(report.identifiability["unidentified"])
+
+
+def test_the_frame_pulse_reaches_the_peak_when_heating_allows_and_is_dropped_when_not():
+    time = np.arange(400) * 1e-4
+    raw = 5.0 * np.sin(2 * np.pi * 50 * time)
+    allowed = DriveLimits(peak=2.0, slew=5e3, heating=4.0, window=40)   # 0.5 A/m per step: a 4-step ramp
+    field = allowed.project(raw, time, sign=-1.0)
+    assert field[0] == 0.0 and field.min() == pytest.approx(-2.0, rel=1e-12) and allowed.keeps_frame(field)
+    assert allowed.violations(field, time) == []
+    tight = DriveLimits(peak=2.0, slew=5e3, heating=0.05, window=40)   # the pulse alone heats more than this
+    field = tight.project(raw, time)
+    assert not tight.keeps_frame(field) and tight.violations(field, time) == []
