@@ -197,3 +197,20 @@ def test_direct_budget_check_records_both_budgets_and_their_change(tmp_path, cap
     assert task["flat"] == (task["relative_change"] < 0.02) and all(np.isfinite([low, high]))
     assert direct_budget.main(["--tasks", "hyst_gym/DriftJump-v0"]) == 2
     assert "calibration tasks" in capsys.readouterr().err
+
+
+def test_the_heat_budget_floor_is_read_from_its_results_file_only_where_it_has_the_task(tmp_path):
+    """The calibration floor with the heat budget comes from experiments/results/floors.json: a task it has
+    (a bound) is read back as stored, one it lacks, another kind or a missing file gives None (the suite then
+    keeps the heat-dropped bound and says so)."""
+    import json
+
+    path = tmp_path / "floors.json"
+    assert suite_v2.heated_floor(CALIBRATE, path) is None
+    path.write_text(json.dumps({"tasks": {CALIBRATE: {"value": 0.86, "kind": "bound", "how": "h"},
+                                          "hyst_gym/DriftJump-v0": {"value": 1.0, "kind": "oracle"}}}))
+    assert suite_v2.heated_floor(CALIBRATE, path)["value"] == 0.86
+    assert suite_v2.heated_floor("hyst_gym/DriftJump-v0", path) is None
+    assert suite_v2.heated_floor("hyst_gym/HotCalibrateNoisy-v0", path) is None
+    committed = suite_v2.heated_floor(CALIBRATE)
+    assert committed is not None and committed["value"] > 0
