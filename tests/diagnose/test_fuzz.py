@@ -60,8 +60,9 @@ def _from_generator(rng, seed, n):
 def fuzz_recording(seed: int) -> tuple[Recording, str]:
     """(recording, description) number ``seed``: deterministic."""
     rng = np.random.default_rng(np.random.SeedSequence([seed, 31]))
-    n = int(rng.integers(400, 560))
     source = "generator" if rng.random() < 0.5 else "physics"
+    # short records (the generator needs 400 samples): the point is robustness, not the verdicts
+    n = int(rng.integers(400, 481)) if source == "generator" else int(rng.integers(250, 401))
     field, outputs = _from_generator(rng, seed, n) if source == "generator" else _from_physics(rng, n)
     axis = ["fast", "quasi-static", "synthetic"][rng.integers(3)]
     if axis == "synthetic":
@@ -78,14 +79,14 @@ def fuzz_recording(seed: int) -> tuple[Recording, str]:
 @pytest.mark.slow
 def test_two_hundred_random_valid_recordings_give_a_verdict_and_finite_numbers():
     """Random effects and strengths, drive amplitudes from 1e2 to 2e5 A/m, sample rates from 50 kHz to
-    1 Hz and synthetic time axes, 400-560 samples: every recording gives a report (no exception, no
+    1 Hz and synthetic time axes, 250-480 samples: every recording gives a report (no exception, no
     failed base fit), with a finite confidence in [0, 1], a finite base held-out RMSE, and a JSON report
     without NaN or infinity."""
     problems = []
     for seed in range(FUZZ_RECORDINGS):
         recording, what = fuzz_recording(seed)
         try:
-            report = diagnose(recording, progress=False, workers=1)
+            report = diagnose(recording, progress=False)
         except Exception as error:  # noqa: BLE001 -- the point: any exception on a valid recording is a failure
             problems.append(f"{what}: {type(error).__name__}: {error}")
             continue
