@@ -157,6 +157,11 @@ def _check_candidates(split, base, base_heldout, candidates):
     return release, released, mechanics_pinned
 
 
+def read_notes(recording) -> list:
+    """What the reader accepted that a user should know of (a byte-order mark, a ';' or tab delimiter)."""
+    return [f"{recording.source}: {note}" for note in (recording.metadata or {}).get("read_notes", [])]
+
+
 def _failure_notes(candidates) -> list:
     """One note per candidate that failed (never accepted, so never named), with the reason."""
     return [f"{c.effect} could not be fitted and was left out ({c.failure})" for c in candidates if c.failure]
@@ -224,7 +229,8 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
                     located=located, improvement=float(chosen.improvement) if chosen else 0.0, structure=structure,
                     split_index=split.cut, noise=split.noise, seconds=0.0, chosen=chosen,
                     heldout_by_channel=heldout_by_channel, tied=decision.tied, advice=decision.advice,
-                    notes=decision.notes + notes_on_priors + _failure_notes(candidates), skipped=skipped,
+                    notes=read_notes(recording) + decision.notes + notes_on_priors + _failure_notes(candidates),
+                    skipped=skipped,
  material_structure=structure_left,
                     identifiability={"priors": release, "unidentified": directions}, continuum=continuum)
     report.explanation = explain(report)
