@@ -46,6 +46,17 @@ def test_a_semicolon_or_tab_delimiter_is_read_and_said(tmp_path, csv_text, short
     assert "not a comma" in read.metadata["read_notes"][0]
 
 
+def test_the_report_says_what_the_reader_accepted(tmp_path, csv_text):
+    path = tmp_path / "semicolons.csv"
+    path.write_bytes(codecs.BOM_UTF8 + csv_text.replace(",", ";").encode("utf-8"))
+    report = diagnose(path, effects=["field_bias"], progress=False, workers=1)
+    notes = " ".join(report.notes)
+    assert "byte-order mark" in notes and "';', not a comma" in notes
+    plain = diagnose(write_recording(tmp_path / "plain.csv", read_recording(path)), effects=["field_bias"],
+                     progress=False, workers=1)
+    assert "not a comma" not in " ".join(plain.notes)
+
+
 def test_a_decimal_comma_gets_a_hint(tmp_path):
     path = tmp_path / "comma.csv"
     path.write_text("time;field;magnetization\n0,0;1,5;2,5\n", encoding="utf-8")
