@@ -36,10 +36,11 @@ OUT = Path(__file__).resolve().parent / "results" / "diagnose"
 #: input vs sensor map; and the lag and map themselves).
 REPLAYABLE = ("input_lag", "sensor_lag", "input_map", "sensor_map", "none")
 #: Default cases (effect, seed, output), fixed before the run: the lag pair on the magnetization channel, seeds
-#: 1-10; the map pair there, seeds 1-5; the lags on both channels, seeds 1-3.
+#: 1-10; the map pair there, seeds 1-5; the lags on both channels, seeds 1-3; no effect (false alarms), seeds 1-5.
 DEFAULT_CASES = ([(e, s, "magnetization") for e in ("input_lag", "sensor_lag") for s in range(1, 11)]
                  + [(e, s, "magnetization") for e in ("input_map", "sensor_map") for s in range(1, 6)]
-                 + [(e, s, "both") for e in ("input_lag", "sensor_lag") for s in range(1, 4)])
+                 + [(e, s, "both") for e in ("input_lag", "sensor_lag") for s in range(1, 4)]
+                 + [("none", s, "magnetization") for s in range(1, 6)])
 #: Bootstrap resamples of the paired difference (designed - control) in right verdicts.
 BOOTSTRAP = 2000
 
