@@ -346,6 +346,8 @@ class HotCalibrateVectorEnv(_Calibrate, IdentificationVectorEnv):
 
         actions = action_array(actions, (self.num_envs,) + self.single_action_space.shape, "actions")
         next_step = self.autoreset_mode == AutoresetMode.NEXT_STEP
+        if self.autoreset_mode == AutoresetMode.DISABLED and self._autoreset.any():  # before the estimator moves
+            raise RuntimeError("step: some sub-envs are done and autoreset_mode is DISABLED; reset them first")
         resetting = self._autoreset.copy() if next_step else np.zeros(self.num_envs, dtype=bool)
         full = self._full_action(actions, skip=resetting)
         observation, _, terminated, truncated, info = super().step(full)
