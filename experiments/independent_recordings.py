@@ -135,7 +135,7 @@ EFFECT_SPECS = {spec.name: spec for spec in (
 #: sensor gain is one of its sensor static maps, the amplifier's saturation one of its input maps.
 TOOL_NAMES = {"sensor_nonlinearity": "sensor_map", "amplifier_saturation": "input_map"}
 #: The tool's additive sensor terms that this generator does not conceal (experiments/other_forms.py does).
-NOT_CONCEALED = ("sensor_drift", "mains_pickup")
+NOT_CONCEALED = ("sensor_drift", "sensor_gain_drift", "mains_pickup")
 EFFECTS_IN_VOCABULARY = tuple(n for n, s in EFFECT_SPECS.items() if s.in_vocabulary)
 EFFECTS_OUTSIDE = tuple(n for n, s in EFFECT_SPECS.items() if not s.in_vocabulary)
 ALL_EFFECTS = tuple(EFFECT_SPECS)

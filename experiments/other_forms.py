@@ -29,6 +29,9 @@ Cases (truth -> forms -> verdicts that count as right):
                          (1 - (T/Tc)^1.5) or linear or constant
 ``sensor_offset_drift``  slow additive offset on a sensor: low-passed random walk,          {sensor_drift}
                          exponential settling, logarithmic creep, linear (integrator)
+``sensor_gain_drift``    slow drift of a sensor's gain (a multiplicative factor): a       {sensor_gain_drift}
+                         logistic warm-up step mid-record, a low-passed random walk,
+                         square-root creep, exponential settling (not a polynomial in t)
 ``mains_pickup``         additive 50 or 60 Hz (+-0.2 %) with a 3rd and a 5th harmonic       {mains_pickup}
 ``continuum_rod``        fixed-free rod with a tip mass, 6 longitudinal modes from           {rod_dynamics}
                          beta*L*tan(beta*L) = rod mass / tip mass, constant or Rayleigh
@@ -115,6 +118,8 @@ CASES = {c.name: c for c in (
              ("two_time_constant",), "coil heating with another drive, network, a(T) and Ms(T) law"),
     CaseSpec("sensor_offset_drift", frozenset({"sensor_drift"}), CHANNEL_SETS,
              ("random_walk", "exponential", "logarithmic", "linear"), "slow additive drift of a sensor offset"),
+    CaseSpec("sensor_gain_drift", frozenset({"sensor_gain_drift"}), CHANNEL_SETS,
+             ("logistic", "random_walk", "sqrt_creep", "exponential"), "slow drift of a sensor's gain"),
     CaseSpec("mains_pickup", frozenset({"mains_pickup"}), CHANNEL_SETS, ("50Hz", "60Hz"),
              "additive mains pickup with 3rd and 5th harmonics"),
     CaseSpec("continuum_rod", frozenset({"rod_dynamics"}), ("displacement", "both"),
@@ -307,6 +312,24 @@ def drift(time, form: str, amplitude: float, tau: float, walk=None) -> np.ndarra
     raise ValueError(f"unknown drift form {form!r}")
 
 
+def gain_drift(time, form: str, amplitude: float, tau: float, walk=None, centre: float = 0.5) -> np.ndarray:
+    """A sensor's relative gain change starting at 0 (the reading is the true output times 1 + this):
+    a logistic step of width ``tau`` at ``centre`` (a fraction of the record), a low-passed random walk
+    (``walk``, unit RMS), square-root creep, or exponential settling with time constant ``tau``."""
+    t = np.asarray(time, dtype=float) - float(time[0])
+    duration = float(t[-1]) or 1.0
+    if form == "logistic":
+        step = 1.0 / (1.0 + np.exp(-(t - centre * duration) / tau))
+        return amplitude * (step - step[0])
+    if form == "random_walk":
+        return amplitude * walk
+    if form == "sqrt_creep":
+        return amplitude * np.sqrt(t / duration)
+    if form == "exponential":
+        return amplitude * -np.expm1(-t / tau)
+    raise ValueError(f"unknown gain drift form {form!r}")
+
+
 def thermal_rise(time, field, law: dict, rise: float) -> np.ndarray:
     """Rod temperature rise (K) through a two-time-constant network driven by ``|H|`` or ``H^2``
     (``law["drive"]``), exact for a drive linear between samples; scaled so that the record's
@@ -458,10 +481,8 @@ def setup(case: str, seed: int, n_samples: int | None = None) -> Setup:
              "a_slope": _choice(rng, (rng.uniform(1e-3, 2.5e-3), rng.uniform(5e-3, 8e-3))),
              "ms_law": ms_law, "curie": rng.uniform(420.0, 700.0), "ms_slope": rng.uniform(5e-4, 2e-3)}
         knob, knob_max = "rise", 150.0
-    elif case == "sensor_offset_drift":
-        p = {"amplitude": rng.uniform(0.01, 0.05) * rng.choice([-1.0, 1.0]), "tau": rng.uniform(0.1, 0.8) * duration,
-             "cutoff_cycles": rng.uniform(1.0, 4.0), "channel": _choice(rng, ("magnetization", "displacement", "both")),
-             "walk_seed": int(rng.integers(2 ** 31))}
+    elif case in ("sensor_offset_drift", "sensor_gain_drift"):
+        p = _drift_draw(rng, case, form, duration)
         knob, knob_max = "amplitude", math.copysign(0.3, p["amplitude"])
     elif case == "mains_pickup":
         p = {"frequency": (50.0 if form == "50Hz" else 60.0) * (1 + rng.uniform(-0.002, 0.002)),
@@ -484,6 +505,22 @@ def setup(case: str, seed: int, n_samples: int | None = None) -> Setup:
         knob, knob_max = "w", 0.5
     return Setup(case=case, seed=int(seed), base=base, time=time, field=field, excitation=info,
                  numerics=numerics, form=form, params=p, knob=knob, knob_max=knob_max)
+
+
+def _drift_draw(rng, case: str, form: str, duration: float) -> dict:
+    """A sensor's offset drift of 1-5 % of the channel's span, or a gain drift of 3-8 % (either sign; a
+    logistic step 0.05-0.15 records wide at 0.3-0.7 of the record, or a creep, walk or settling on 0.2-0.8
+    records); on one channel or both."""
+    if case == "sensor_offset_drift":
+        return {"amplitude": rng.uniform(0.01, 0.05) * rng.choice([-1.0, 1.0]),
+                "tau": rng.uniform(0.1, 0.8) * duration, "cutoff_cycles": rng.uniform(1.0, 4.0),
+                "channel": _choice(rng, ("magnetization", "displacement", "both")),
+                "walk_seed": int(rng.integers(2 ** 31))}
+    width = rng.uniform(0.05, 0.15) if form == "logistic" else rng.uniform(0.2, 0.8)
+    return {"amplitude": rng.uniform(0.03, 0.08) * rng.choice([-1.0, 1.0]), "tau": width * duration,
+            "centre": rng.uniform(0.3, 0.7), "cutoff_cycles": rng.uniform(1.0, 3.0),
+            "channel": _choice(rng, ("magnetization", "displacement", "both")),
+            "walk_seed": int(rng.integers(2 ** 31))}
 
 
 def _input_dynamics_draw(rng, form: str, sample_rate: float) -> dict:
@@ -599,6 +636,10 @@ def forward(st: Setup) -> dict:
                                           p["phases"])
             else:
                 out[ch] = out[ch] + drift(st.time, st.form, p["amplitude"] * span, p["tau"], _walk(st, ch))
+    elif case == "sensor_gain_drift":
+        for ch in _acted_channels(st, BOTH):
+            out[ch] = out[ch] * (1.0 + gain_drift(st.time, st.form, p["amplitude"], p["tau"], _walk(st, ch),
+                                                  p["centre"]))
     return out
 
 
@@ -620,7 +661,7 @@ def _acted_channels(st: Setup, wanted) -> tuple:
     case = st.case
     if case in ("delta_e_shifted", "sensor_nonlinearity", "continuum_rod"):
         acted = ("displacement",)
-    elif case in ("sensor_offset_drift", "mains_pickup"):
+    elif case in ("sensor_offset_drift", "sensor_gain_drift", "mains_pickup"):
         ch = st.params["channel"]
         acted = BOTH if ch == "both" else (ch,)
     elif case == "two_phase_rod" and st.form == "split_roles":

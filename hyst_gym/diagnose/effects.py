@@ -32,6 +32,10 @@ SENSOR_MAP_NAMES = {"magnetization": ("sensor_quadratic_m", "sensor_cubic_m"),
                     "displacement": ("sensor_quadratic_x", "sensor_cubic_x")}
 DRIFT_NAMES = {"magnetization": ("drift_linear_m", "drift_quadratic_m"),
                "displacement": ("drift_linear_x", "drift_quadratic_x")}
+#: The sensor gain drift's coefficients per channel, in the order :func:`.model.gain_drift_factor` takes them:
+#: the relative gain change g1*f + g2*(1 - exp(-f/tau_gain)) (f: the record's time mapped to [0, 1]).
+GAIN_DRIFT_NAMES = {"magnetization": ("gain_drift_linear_m", "gain_drift_settling_m"),
+                    "displacement": ("gain_drift_linear_x", "gain_drift_settling_x")}
 MAINS_NAMES = {ch: tuple(f"{term}_{ch[0]}" for term in ("mains_cos", "mains_sin", "mains3_cos", "mains3_sin"))
                for ch in ("magnetization", "displacement")}
 #: The input map's coefficients in the order :func:`.model.mapped_field` takes them.
@@ -62,10 +66,14 @@ class BestDetermined:
     """A family whose shape is spread over several coefficients: the block check refits the one the
     record determines best (largest |value|/sigma), which a real map or drift shares across the blocks
     while a family bent to mimic something else is pulled to different values by each block's
-    excitation."""
+    excitation. ``among``: only these (a shape parameter such as a time constant, which means nothing
+    where the coefficients vanish, is left out); None: all of the effect's parameters."""
+
+    among: tuple | None = None
 
     def choose(self, fit, effect) -> str | None:
-        scored = [(abs(fit.values[n]) / (fit.uncertainties.get(n) or np.inf), n) for n in effect.parameter_names
+        names = effect.parameter_names if self.among is None else self.among
+        scored = [(abs(fit.values[n]) / (fit.uncertainties.get(n) or np.inf), n) for n in names
                   if n in fit.model.parameters and fit.model.parameters[n].free]
         scored = [(z if np.isfinite(z) else 0.0, n) for z, n in scored]
         return max(scored)[1] if scored else None
@@ -184,18 +192,26 @@ def _input_dynamics_parameters(recording, structure, base_values):
             "delay_in": Parameter("delay_in", 0.0, 0.0, 0.02 * frame.duration, "s", scale=frame.dt)}
 
 
-def _per_channel_terms(names_by_channel, lower, upper, scale):
-    """Builder of a per-output-channel additive or map family with coefficients in units of the
-    channel's half-span, free where the channel is recorded and explained."""
+def _per_channel_terms(names_by_channel, lower, upper, scale, unit="1 (of the channel's half-span)"):
+    """Builder of a per-output-channel additive or map family with coefficients in ``unit`` (by default
+    the channel's half-span), free where the channel is recorded and explained."""
     def build(recording, structure, base_values):
         out = {}
         for channel, names in names_by_channel.items():
             free = _output_free(recording, structure, channel)
             for name in names:
-                out[name] = Parameter(name, 0.0, lower, upper, "1 (of the channel's half-span)", scale=scale,
-                                      free=free)
+                out[name] = Parameter(name, 0.0, lower, upper, unit, scale=scale, free=free)
         return out
     return build
+
+
+def _gain_drift_parameters(recording, structure, base_values):
+    # the coefficients are relative gain changes (a sensor's gain drifting by up to +-50 % is broken, not
+    # drifting); the settling time is shared by the channels (one warm-up of the rig)
+    out = {"tau_gain": Parameter("tau_gain", 0.5, 0.03, 10.0, "1 (of the record's length)", log=True)}
+    out.update(_per_channel_terms(GAIN_DRIFT_NAMES, -0.5, 0.5, 0.01, "1 (relative gain change)")(
+        recording, structure, base_values))
+    return out
 
 
 def _mains_parameters(recording, structure, base_values):
@@ -401,6 +417,12 @@ _AFTER_MECHANICS = (_BROADBAND + ": a sensor's static map acts after the mechani
 _FIELD_AT_ROD = ("measure the field at the rod (a Hall probe or a field coil) beside the recorded drive: an input lag "
                  "delays it, a sensor lag only the outputs (with a rate-independent loop the two are otherwise the "
                  "same record)")
+_GAIN_OR_MS = ("record the displacement beside the magnetization (a drift of Ms moves both channels alike, a "
+               "sensor's gain drift only its own), or a second record at another temperature")
+_GAIN_OR_MATERIAL = ("record the magnetization beside the displacement (a drift of the material moves both channels "
+                     "alike, a sensor's gain drift only its own), or a second record at another temperature")
+_ZERO_STRETCHES = ("record a stretch with the drive off at the start and at the end: an offset drift moves the "
+                   "sensor's zero, a gain drift does not")
 _MAINS_CYCLES = ("record longer (many mains cycles) or a stretch with the drive off: pickup repeats at 50/60 Hz, "
                  "a drift does not")
 
@@ -432,7 +454,8 @@ class Effect:
     rescue : parameters searched again with the hysteresis when the local fit misses by far
         (:func:`.hypothesize.rescue`); None: no rescue (it searches globally already, or is linear)
     starts : ``(model, start) -> [starts]`` of its local fit
-    strategy : how the hypothesize stage fits it (:data:`.hypothesize.STRATEGIES`)
+    strategy : how the hypothesize stage fits it (:data:`.hypothesize.STRATEGIES`; ``linear_sensor_scan``:
+        its channel terms solved linearly at each point of a grid over its first ``search_ranges`` parameter)
     mechanical : it acts on the displacement path only (invisible with magnetization alone)
     swaps_curve : it swaps the anhysteretic curve (Ising <-> Langevin)
     channel_terms : per output channel, its coefficients that are linear in the recorded output
@@ -587,6 +610,20 @@ _REGISTERED = (
         parameters=_per_channel_terms(DRIFT_NAMES, -1.0, 1.0, 0.01), identified_by=BestDetermined(),
         applies=_always, rate_dependent=False, rescue=None, strategy="linear_sensor", channel_terms=DRIFT_NAMES,
         confusable={"thermal_drift": _everywhere(_TEMPERATURE)}),
+    Effect(
+        # its own effect beside sensor_drift, not a widening of it: a gain scales the reading, an offset shifts
+        # it, and the two separate on a record that swings about a bias (the slot says which one it is)
+        name="sensor_gain_drift", slot="sensor static map (a slow drift of the gain)",
+        words="a slow drift of a sensor's gain over the record: it reads the true output times "
+              "1 + g1*f + g2*(1 - exp(-f/tau_gain)) (f: the record's time mapped to [0, 1]; calibrated at the start)",
+        parameter_names=("tau_gain",) + GAIN_DRIFT_NAMES["magnetization"] + GAIN_DRIFT_NAMES["displacement"],
+        parameters=_gain_drift_parameters,
+        identified_by=BestDetermined(GAIN_DRIFT_NAMES["magnetization"] + GAIN_DRIFT_NAMES["displacement"]),
+        applies=_always, rate_dependent=False, rescue=None, strategy="linear_sensor_scan",
+        channel_terms=GAIN_DRIFT_NAMES, search_ranges=("tau_gain",),
+        confusable={"thermal_drift": {"magnetization": _GAIN_OR_MS, "displacement": _GAIN_OR_MATERIAL,
+                                      "both": _TEMPERATURE},
+                    "sensor_drift": _everywhere(_ZERO_STRETCHES)}),
     Effect(
         name="mains_pickup", slot="sensor pickup (mains interference at 50/60 Hz)",
         words="mains pickup: an output sensor picks up the 50/60 Hz mains and its third harmonic",

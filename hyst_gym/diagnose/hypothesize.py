@@ -170,6 +170,23 @@ def _linear_sensor_starts(split, base, effect, model):
     return model, starts + [_linear_sensor_start(model, effect, starts[0], split.fit_mask)]
 
 
+def _linear_sensor_scan_starts(split, base, effect, model):
+    """The channel terms solved linearly at each of five points, geometric over the range of the effect's
+    first ``search_ranges`` parameter (a shape the terms are not linear in: a settling time); the two best
+    on the fitting block and the plain start."""
+    start = effect_starts(model, effect.name, base.values)[0]
+    shape = model.parameters[effect.search_ranges[0]]
+    scored = []
+    for value in np.geomspace(shape.lower * 1.5, shape.upper / 1.5, 5):
+        candidate = _linear_sensor_start(model, effect, dict(start, **{shape.name: float(value)}), split.fit_mask)
+        predicted = model.predict(candidate)
+        sse = sum(float(np.sum(((predicted[ch] - model.recording.output(ch))[split.fit_mask]) ** 2))
+                  / split.noise[ch] ** 2 for ch in model.channels)
+        scored.append((sse if np.isfinite(sse) else np.inf, float(value), candidate))
+    best = [candidate for _, _, candidate in sorted(scored, key=lambda t: t[:2])[:2]]
+    return model, [start] + best
+
+
 def _mains_starts(split, base, effect, model):
     return model, mains_starts(model, effect_starts(model, effect.name, base.values)[0], split.noise,
                                split.fit_mask, effect)
@@ -178,7 +195,8 @@ def _mains_starts(split, base, effect, model):
 #: How the hypothesize stage fits an effect (its ``strategy`` in the registry).
 STRATEGIES = {"local": _local_starts, "other_curve": _other_curve_starts,
               "with_hysteresis": _with_hysteresis_starts, "quadratic_outputs": _quadratic_output_starts,
-              "linear_sensor": _linear_sensor_starts, "mains": _mains_starts}
+              "linear_sensor": _linear_sensor_starts, "linear_sensor_scan": _linear_sensor_scan_starts,
+              "mains": _mains_starts}
 
 
 def fit_candidate(split: Split, base: FitResult, name: str) -> FitResult:

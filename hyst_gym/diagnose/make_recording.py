@@ -43,10 +43,12 @@ Effects at ``strength = 1`` (the default; strength scales the effect's size):
   its half-span) with a compressive q3 of -0.05 to -0.15 and q2 within +-0.08;
 * ``sensor_drift``: each sensor's offset settles exponentially by 3-8 % of its span (time constant
   0.3-1 record lengths) from zero at the start;
+* ``sensor_gain_drift``: each sensor's gain settles exponentially by 3-8 % (either sign; time constant 0.3-1
+  record lengths) from its calibration at the start;
 * ``mains_pickup``: 50 or 60 Hz pickup of 1-3 % of each channel's span, with a third harmonic of
   20-40 % of that, at random phases.
 
-The flexible families (the last four) hold these laws, so the concealed study draws only the
+The flexible families (the last five) hold these laws, so the concealed study draws only the
 textbook ones (:data:`GENERATOR_EFFECTS`); every effect the tool names can be written
 (:data:`WRITABLE_EFFECTS`).
 """
@@ -68,7 +70,7 @@ from .model import PAPER_CHAT, PAPER_KHAT
 from .recording import Recording, write_recording
 
 #: Effects whose laws are flexible families of the tool (their generators above draw one member each).
-FAMILY_GENERATED = ("input_map", "sensor_map", "sensor_drift", "mains_pickup")
+FAMILY_GENERATED = ("input_map", "sensor_map", "sensor_drift", "sensor_gain_drift", "mains_pickup")
 #: The effects the concealed study draws here: the vocabulary's textbook laws. The flexible families are
 #: judged on recordings from independent generators (``experiments/independent_recordings.py``,
 #: ``experiments/other_forms.py``), whose forms the tool's families do not hold exactly.
@@ -252,6 +254,14 @@ def _sensor_drift(signal, strength, effect_rng, fine_time):
     return signal + size * (1.0 - np.exp(-(fine_time - fine_time[0]) / tau))
 
 
+def _sensor_gain_drift(signal, strength, effect_rng, fine_time):
+    """A gain that settles exponentially from its calibration at the start, by 3-8 % (either sign; time
+    constant 0.3-1 record lengths): the reading is the true output times it."""
+    size = strength * effect_rng.uniform(0.03, 0.08) * effect_rng.choice([-1.0, 1.0])
+    tau = effect_rng.uniform(0.3, 1.0) * float(fine_time[-1] - fine_time[0])
+    return signal * (1.0 + size * -np.expm1(-(fine_time - fine_time[0]) / tau))
+
+
 def _mains_pickup(signal, strength, effect_rng, fine_time):
     """Mains pickup at 50 or 60 Hz, 1-3 % of the output's span, with a third harmonic of 20-40 % of it."""
     hz = float(effect_rng.choice([50.0, 60.0]))
@@ -263,7 +273,8 @@ def _mains_pickup(signal, strength, effect_rng, fine_time):
 
 
 #: Generators of the sensor's effects that act on each recorded output alone.
-SENSOR_GENERATORS = {"sensor_map": _sensor_map, "sensor_drift": _sensor_drift, "mains_pickup": _mains_pickup}
+SENSOR_GENERATORS = {"sensor_map": _sensor_map, "sensor_drift": _sensor_drift, "sensor_gain_drift": _sensor_gain_drift,
+                     "mains_pickup": _mains_pickup}
 
 
 def _input_mapped(field, strength, effect_rng, fine_time, fs):

@@ -51,6 +51,11 @@ the base model when those parameters vanish:
                                 of each sensor's offset since the record's start (the sensor zeroed
                                 there), ``s*(d1*f + d2*f^2)`` with f the record's time mapped to
                                 [0, 1]
+``sensor_gain_drift``           ``gain_drift_linear_<ch>``, ``gain_drift_settling_<ch>``, ``tau_gain``
+                                (record lengths, shared): a slow drift of each sensor's gain since
+                                the record's start (calibrated there): the reading is
+                                ``1 + g1*f + g2*(1 - exp(-f/tau_gain))`` times the true output (after
+                                the static map), f as for ``sensor_drift``
 ``mains_pickup``                ``mains_cos_<ch>``, ``mains_sin_<ch>``, ``mains3_cos_<ch>``,
                                 ``mains3_sin_<ch>`` at ``mains_hz`` (50 or 60 Hz, chosen from the
                                 base model's residual): additive pickup of the mains and its third
@@ -61,8 +66,8 @@ Each extension fills one *slot* of the model chain (its ``slot`` in the registry
 anhysteretic curve, the time variation of the material, the rate dependence, the
 magnetostriction law, the stiffness, the mechanical modes, the sensor's dynamics or the sensor's
 static map, the sensor's offset and pickup. The flexible families (``delta_e``, the heating law of
-``thermal_drift``, ``input_map``, ``sensor_map``, ``sensor_drift``) hold the textbook law as a special
-case and other laws of the same slot besides (issue 22).
+``thermal_drift``, ``input_map``, ``sensor_map``, ``sensor_drift``, ``sensor_gain_drift``) hold the textbook
+law as a special case and other laws of the same slot besides (issue 22).
 
 The fitted coordinates are ``ln(value)`` for the positive scale parameters and
 ``value/scale`` for the others; the feedback is fitted as ``rho = alpha*Man'(0)`` (the
@@ -78,8 +83,9 @@ import numpy as np
 from ..physics.fem import FEMRod
 from ..physics.constants import PAPER_DAMPING, PAPER_STIFFNESS
 from ..physics.transducers import RodParams
-from .effects import (DRIFT_NAMES, EFFECTS, INPUT_DYNAMICS_NAMES, INPUT_MAP_NAMES, MAINS_MIN_CYCLES, MAINS_NAMES,
-                      PAPER_MS, SENSOR_MAP_NAMES, applicable_effects, effect, extension_parameters, mapped_field)
+from .effects import (DRIFT_NAMES, EFFECTS, GAIN_DRIFT_NAMES, INPUT_DYNAMICS_NAMES, INPUT_MAP_NAMES,
+                      MAINS_MIN_CYCLES, MAINS_NAMES, PAPER_MS, SENSOR_MAP_NAMES, applicable_effects, effect,
+                      extension_parameters, mapped_field)
 from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, first_order_system, lti_response,
                       second_order_system, simulate_members, step_classes, step_lti,
                       varying_stiffness_response)
@@ -218,15 +224,21 @@ class Model:
 
     def _sensor_terms(self, channel, values, signal):
         """What the sensor adds to the true output: its static map (``sensor_map``), a slow offset drift
-        (``sensor_drift``) and mains pickup (``mains_pickup``); the identity when their coefficients vanish."""
+        (``sensor_drift``), a slow drift of its gain (``sensor_gain_drift``) and mains pickup (``mains_pickup``);
+        the identity when their coefficients vanish."""
         quadratic, cubic = (values.get(n, 0.0) for n in SENSOR_MAP_NAMES[channel])
         drift = [values.get(n, 0.0) for n in DRIFT_NAMES[channel]]
+        gain = [values.get(n, 0.0) for n in GAIN_DRIFT_NAMES[channel]]
         mains = [values.get(n, 0.0) for n in MAINS_NAMES[channel]]
-        if quadratic == 0.0 and cubic == 0.0 and not any(drift) and not any(mains):
+        if quadratic == 0.0 and cubic == 0.0 and not any(drift) and not any(gain) and not any(mains):
             return signal
         centre, half_span = channel_range(self.recording.output(channel))
         v = (signal - centre) / half_span
         out = signal + half_span * (quadratic * v ** 2 + cubic * v ** 3)
+        if any(gain):
+            # the sensor's gain drifts from its calibration at the record's start: it scales the whole reading
+            # (a static map's output, before the offset and the pickup that add to it)
+            out = gain_drift_factor(self._record_fraction, *gain, values["tau_gain"]) * out
         if any(drift):
             fraction = self._record_fraction
             out = out + half_span * (drift[0] * fraction + drift[1] * fraction ** 2)
@@ -281,6 +293,18 @@ def relative_stiffness_change(magnetization, values):
     ``delta_e*(m^2 - m0^2) + delta_e_linear*(m - m0)``, m = M/Ms, zero at the bias M0."""
     m, m0 = magnetization / values["Ms"], values["M0"] / values["Ms"]
     return values.get("delta_e", 0.0) * (m ** 2 - m0 ** 2) + values.get("delta_e_linear", 0.0) * (m - m0)
+
+
+def gain_drift_factor(fraction, linear, settling, tau):
+    """The ``sensor_gain_drift`` family: the sensor's gain relative to its gain at the record's start,
+    ``1 + linear*f + settling*(1 - exp(-f/tau))`` at ``fraction`` f (the record's time mapped to [0, 1]; tau
+    in record lengths).
+
+    Why a settling term and not a polynomial in f: the held-out block is the record's end, so the family
+    must extrapolate; a warm-up settles, where a quadratic fitted to the first 70 % turns back (it misses the
+    end of a settling with tau = 0.3 records by ~19 % of its size, the settling term not at all). A linear
+    creep is the member with settling = 0, a quadratic one the limit of a long tau."""
+    return 1.0 + linear * fraction + settling * -np.expm1(-fraction / tau)
 
 
 def input_dynamics(time, field, tau, delay, classes=None):

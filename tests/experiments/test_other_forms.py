@@ -18,7 +18,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 SHORT = 600
 #: Cases whose effect has a size knob that switches it off at 0.
 SIZED = ("delta_e_shifted", "saturating_amplifier", "sensor_nonlinearity", "heating_other_law",
-         "sensor_offset_drift", "mains_pickup", "two_phase_rod")
+         "sensor_offset_drift", "sensor_gain_drift", "mains_pickup", "two_phase_rod")
 
 
 def test_imports_nothing_of_the_fitter():
