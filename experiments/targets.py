@@ -10,7 +10,7 @@ site (``docs/targets.md``, between its ``<!-- section:targets -->`` markers) is 
 from it, so a new measurement or a changed target shows up as met or not met on the next run.
 
 Modules that state a target read it from here (:data:`BY_KEY`); the ones the installed package
-cannot import from (``hyst_gym.bench``, ``hyst_gym.envs.benchmark``) are checked against it by
+cannot import from (``hyst_gym.layer_speed``, ``hyst_gym.envs.step_speed``) are checked against it by
 the same test.
 """
 

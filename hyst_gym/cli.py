@@ -43,7 +43,7 @@ class Subcommand:
 
 SUBCOMMANDS = {
     "demo": Subcommand("experiments.demo", "run the end-to-end demo (paper example, baselines, PPO, figures)", True),
-    "bench": Subcommand("hyst_gym.bench", "measure kernel, estimator and environment speed"),
+    "bench": Subcommand("hyst_gym.layer_speed", "measure kernel, estimator and environment speed"),
     "reproduce": Subcommand("experiments.reproduce_paper", "reproduce the paper's numerical examples (Figs. 8-11)",
                             True),
     "train": Subcommand("baselines.train", "train a PPO, SAC or RecurrentPPO excitation policy", True),

@@ -34,7 +34,7 @@ import numpy as np
 SECTIONS = (
     ("hysteresis bank", "hyst_gym.physics.kernel_speed"),
     ("estimators", "hyst_gym.estimation.estimator_speed"),
-    ("environments", "hyst_gym.envs.benchmark"),
+    ("environments", "hyst_gym.envs.step_speed"),
 )
 #: layer name (the ``--only`` choice) per module
 LAYERS = tuple(module.rsplit(".", 2)[-2] for _, module in SECTIONS)
@@ -203,7 +203,7 @@ def readme_sections(results, in_readme: bool = True) -> dict:
             rows.append(f"| native vector env, n = {n} | {vector[n]:,.0f} | {vector[n] * dt:,.0f} | {target} |")
         largest = max(vector, key=int)
         sections["envs"] = (
-            f"Speed (`hyst-gym bench --only envs`, or `python -m hyst_gym.envs.benchmark`; default Excitation-v0, "
+            f"Speed (`hyst-gym bench --only envs`, or `python -m hyst_gym.envs.step_speed`; default Excitation-v0, "
             f"random actions, wall time; figures from {source}):\n\n" + "\n".join(rows) + "\n\n"
             f"One single-env step takes {_us(single):.0f} µs; at n = {largest} one sub-env step takes "
             f"{_us(vector[largest]):.1f} µs.")

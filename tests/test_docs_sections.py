@@ -83,7 +83,7 @@ def test_first_step_section_is_current():
 
 
 def test_bench_sections_are_current():
-    from hyst_gym.bench import readme_sections
+    from hyst_gym.layer_speed import readme_sections
 
     text = (DOCS / "bench.md").read_text(encoding="utf-8")
     results = json.loads(text.split("<!-- bench-json -->", 1)[1].split("```json", 1)[1].split("```", 1)[0])
@@ -94,7 +94,7 @@ def test_bench_sections_are_current():
 def test_stated_speed_targets_are_the_targets_module():
     """The modules the installed package cannot import the targets from state the same numbers."""
     from experiments.targets import BY_KEY
-    from hyst_gym.envs.benchmark import SUITE_TARGETS
+    from hyst_gym.envs.step_speed import SUITE_TARGETS
 
     assert SUITE_TARGETS == {"single": BY_KEY["suite_single"].bound, "1024": BY_KEY["suite_vector_1024"].bound}
     for path in ("experiments/results/suite_v1.json",):

@@ -316,7 +316,7 @@ def test_readme_points_only_inside_the_repository():
 def test_speed_figures_come_from_docs_bench():
     """The speed page's paragraphs are exactly what ``hyst-gym bench --from docs/bench.md
     --page docs/speed.md`` writes: no hand-typed speed figures."""
-    from hyst_gym.bench import load, readme_sections
+    from hyst_gym.layer_speed import load, readme_sections
 
     text = (REPO / "docs" / "speed.md").read_text(encoding="utf-8")
     sections = readme_sections(load(REPO / "docs" / "bench.md"))

@@ -72,7 +72,7 @@ from experiments.suite.kinds import task_kind
 RAW = RESULTS / "raw" / "suite_v1"
 README = common.DOCS_PAGE
 README_AREA = "suite-v1"
-#: wall seconds per timed case of the env speed measurement (hyst_gym.envs.benchmark)
+#: wall seconds per timed case of the env speed measurement (hyst_gym.envs.step_speed)
 SPEED_BUDGET_S = 1.0
 RL_TARGET = 0.5
 
@@ -459,7 +459,7 @@ def run_suite(profile: Profile, task_ids, out: pathlib.Path, figure_path: pathli
               readme: pathlib.Path | None = None, log=print) -> dict:
     from hyst_gym.envs.suite_v1 import suite_tasks
 
-    from hyst_gym.envs.benchmark import SUITE_TARGETS, run_suite_benchmark
+    from hyst_gym.envs.step_speed import SUITE_TARGETS, run_suite_benchmark
 
     start = time.time()
     if profile.train:

@@ -6,7 +6,7 @@ n = 1, 64 and 1024. Targets (issue 4, 2-core machine): >= 5,000 steps/s single a
 >= 100,000 aggregate steps/s at n = 1024. Each task of the benchmark suite
 (:mod:`hyst_gym.envs.suite_v1`) is timed the same way, single and at n = 1024 (issue 13 target:
 >= 20,000 and >= 200,000 steps/s). Where the time goes: run
-``python -m cProfile -s tottime -m hyst_gym.envs.benchmark``.
+``python -m cProfile -s tottime -m hyst_gym.envs.step_speed``.
 """
 
 from __future__ import annotations
