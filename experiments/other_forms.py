@@ -30,9 +30,12 @@ Cases (truth -> forms -> verdicts that count as right):
 ``sensor_offset_drift``  slow additive offset on a sensor: low-passed random walk,          {sensor_drift}
                          exponential settling, logarithmic creep, linear (integrator)
 ``sensor_gain_drift``    slow drift of a sensor's gain (a multiplicative factor): a       {sensor_gain_drift}
-                         logistic warm-up step mid-record, a low-passed random walk,
-                         square-root creep, exponential settling (not a polynomial in t)
+                         two-stage warm-up (two time constants), a low-passed random
+                         walk, square-root creep (not the tool's one-settling family)
 ``mains_pickup``         additive 50 or 60 Hz (+-0.2 %) with a 3rd and a 5th harmonic       {mains_pickup}
+``magnetostriction_law`` an even law lambda(M/Ms), lambda(0) = 0, not a polynomial:      {quadratic_
+                         tanh((m/w)^2), 1 - exp(-(m/w)^2) (saturating) or |m|^p (p          magnetostriction}
+                         2.5-3.5), blended with the linear M (share 0.5-1)
 ``continuum_rod``        fixed-free rod with a tip mass, 6 longitudinal modes from           {rod_dynamics}
                          beta*L*tan(beta*L) = rod mass / tip mass, constant or Rayleigh
                          damping; driven by a log chirp reaching 1.5-3x the first resonance
@@ -119,9 +122,11 @@ CASES = {c.name: c for c in (
     CaseSpec("sensor_offset_drift", frozenset({"sensor_drift"}), CHANNEL_SETS,
              ("random_walk", "exponential", "logarithmic", "linear"), "slow additive drift of a sensor offset"),
     CaseSpec("sensor_gain_drift", frozenset({"sensor_gain_drift"}), CHANNEL_SETS,
-             ("logistic", "random_walk", "sqrt_creep", "exponential"), "slow drift of a sensor's gain"),
+             ("two_stage", "random_walk", "sqrt_creep"), "slow drift of a sensor's gain"),
     CaseSpec("mains_pickup", frozenset({"mains_pickup"}), CHANNEL_SETS, ("50Hz", "60Hz"),
              "additive mains pickup with 3rd and 5th harmonics"),
+    CaseSpec("magnetostriction_law", frozenset({"quadratic_magnetostriction"}), ("displacement", "both"),
+             ("tanh_saturating", "gaussian_saturating", "power"), "an even, non-polynomial magnetostriction law"),
     CaseSpec("continuum_rod", frozenset({"rod_dynamics"}), ("displacement", "both"),
              ("modal_constant_damping", "modal_rayleigh_damping"), "fixed-free rod with a tip mass, 6 modes"),
     CaseSpec("input_dynamics", frozenset({"input_lag"}), CHANNEL_SETS,
@@ -312,21 +317,31 @@ def drift(time, form: str, amplitude: float, tau: float, walk=None) -> np.ndarra
     raise ValueError(f"unknown drift form {form!r}")
 
 
-def gain_drift(time, form: str, amplitude: float, tau: float, walk=None, centre: float = 0.5) -> np.ndarray:
-    """A sensor's relative gain change starting at 0 (the reading is the true output times 1 + this):
-    a logistic step of width ``tau`` at ``centre`` (a fraction of the record), a low-passed random walk
-    (``walk``, unit RMS), square-root creep, or exponential settling with time constant ``tau``."""
+def magnetostriction(M, Ms: float, form: str, width: float, power: float) -> np.ndarray:
+    """An even magnetostriction law lambda(m), m = M/Ms, lambda(0) = 0, in arbitrary units: tanh((m/w)^2) or
+    1 - exp(-(m/w)^2) (both saturate beyond m ~ w), or |m|^p."""
+    m = np.asarray(M, dtype=float) / Ms
+    if form == "tanh_saturating":
+        return np.tanh((m / width) ** 2)
+    if form == "gaussian_saturating":
+        return -np.expm1(-(m / width) ** 2)
+    if form == "power":
+        return np.abs(m) ** power
+    raise ValueError(f"unknown magnetostriction form {form!r}")
+
+
+def gain_drift(time, form: str, amplitude: float, tau: float, walk=None, share: float = 0.5) -> np.ndarray:
+    """A sensor's relative gain change starting at 0 (the reading is the true output times 1 + this): a
+    two-stage warm-up (a fast settling with time constant ``tau`` and share ``share``, the rest with 10 x
+    ``tau``), a low-passed random walk (``walk``, unit RMS) or square-root creep."""
     t = np.asarray(time, dtype=float) - float(time[0])
     duration = float(t[-1]) or 1.0
-    if form == "logistic":
-        step = 1.0 / (1.0 + np.exp(-(t - centre * duration) / tau))
-        return amplitude * (step - step[0])
+    if form == "two_stage":
+        return amplitude * (share * -np.expm1(-t / tau) + (1.0 - share) * -np.expm1(-t / (10.0 * tau)))
     if form == "random_walk":
         return amplitude * walk
     if form == "sqrt_creep":
         return amplitude * np.sqrt(t / duration)
-    if form == "exponential":
-        return amplitude * -np.expm1(-t / tau)
     raise ValueError(f"unknown gain drift form {form!r}")
 
 
@@ -490,10 +505,8 @@ def setup(case: str, seed: int, n_samples: int | None = None) -> Setup:
              "phases": rng.uniform(0, 2 * np.pi, 3).tolist(),
              "channel": _choice(rng, ("magnetization", "displacement", "both"))}
         knob, knob_max = "amplitude", 0.2
-    elif case == "continuum_rod":
-        p = {"mass_ratio": rng.uniform(0.5, 3.0), "zeta1": rng.uniform(0.01, 0.05),
-             "rayleigh_stiff_share": rng.uniform(0.3, 0.8)}
-        knob, knob_max = "mass_ratio", 8.0
+    elif case in ("magnetostriction_law", "continuum_rod"):
+        p, knob, knob_max = _mechanics_draw(rng, case)
     elif case == "input_dynamics":
         p, knob, knob_max = _input_dynamics_draw(rng, form, base.conditions.sample_rate), "scale", 20.0
     elif case == "two_phase_rod":
@@ -507,18 +520,26 @@ def setup(case: str, seed: int, n_samples: int | None = None) -> Setup:
                  numerics=numerics, form=form, params=p, knob=knob, knob_max=knob_max)
 
 
+def _mechanics_draw(rng, case: str) -> tuple[dict, str, float]:
+    """(parameters, size knob, its cap) of the even magnetostriction law or the continuum rod."""
+    if case == "magnetostriction_law":
+        return ({"blend": rng.uniform(0.5, 1.0), "width": rng.uniform(0.3, 0.7), "power": rng.uniform(2.5, 3.5)},
+                "blend", 1.0)
+    return ({"mass_ratio": rng.uniform(0.5, 3.0), "zeta1": rng.uniform(0.01, 0.05),
+             "rayleigh_stiff_share": rng.uniform(0.3, 0.8)}, "mass_ratio", 8.0)
+
+
 def _drift_draw(rng, case: str, form: str, duration: float) -> dict:
     """A sensor's offset drift of 1-5 % of the channel's span, or a gain drift of 3-8 % (either sign; a
-    logistic step 0.05-0.15 records wide at 0.3-0.7 of the record, or a creep, walk or settling on 0.2-0.8
-    records); on one channel or both."""
+    two-stage warm-up with a fast time constant of 0.05-0.2 records and 30-70 % share, a walk low-passed at
+    1-3 cycles per record, or a square-root creep); on one channel or both."""
     if case == "sensor_offset_drift":
         return {"amplitude": rng.uniform(0.01, 0.05) * rng.choice([-1.0, 1.0]),
                 "tau": rng.uniform(0.1, 0.8) * duration, "cutoff_cycles": rng.uniform(1.0, 4.0),
                 "channel": _choice(rng, ("magnetization", "displacement", "both")),
                 "walk_seed": int(rng.integers(2 ** 31))}
-    width = rng.uniform(0.05, 0.15) if form == "logistic" else rng.uniform(0.2, 0.8)
-    return {"amplitude": rng.uniform(0.03, 0.08) * rng.choice([-1.0, 1.0]), "tau": width * duration,
-            "centre": rng.uniform(0.3, 0.7), "cutoff_cycles": rng.uniform(1.0, 3.0),
+    return {"amplitude": rng.uniform(0.03, 0.08) * rng.choice([-1.0, 1.0]), "tau": rng.uniform(0.05, 0.2) * duration,
+            "share": rng.uniform(0.3, 0.7), "cutoff_cycles": rng.uniform(1.0, 3.0),
             "channel": _choice(rng, ("magnetization", "displacement", "both")),
             "walk_seed": int(rng.integers(2 ** 31))}
 
@@ -566,6 +587,15 @@ def _lumped(st: Setup, M, stiffness_factor=None):
     dt = float(st.time[1] - st.time[0])
     return newmark(mech.zetahat * M, dt, mech.khat, mech.chat, 1.0, 1.0, stiffness_factor=stiffness_factor,
                    substeps=num["substeps"], hold=num["hold"])
+
+
+def _even_law_drive(st: Setup, M):
+    """The magnetization-like drive of the lumped mechanics under the even law: (1 - blend)*M + blend*lambda(M)
+    with lambda scaled to the span of M over the record (blend 0: the linearized law (13))."""
+    p = st.params
+    law = magnetostriction(M, st.base.material.Ms, st.form, p["width"], p["power"])
+    law = law * (float(np.ptp(M)) / (float(np.ptp(law)) or 1.0))
+    return (1.0 - p["blend"]) * M + p["blend"] * law
 
 
 def _rod(st: Setup, M):
@@ -623,6 +653,8 @@ def forward(st: Setup) -> dict:
         x = _lumped(st, M_drive, _stiffness(st, M_drive))
     elif case == "continuum_rod":
         x = _rod(st, M_drive)
+    elif case == "magnetostriction_law":
+        x = _lumped(st, _even_law_drive(st, M_drive))
     else:
         x = _lumped(st, M_drive)
     out = {"magnetization": M, "displacement": x}
@@ -639,7 +671,7 @@ def forward(st: Setup) -> dict:
     elif case == "sensor_gain_drift":
         for ch in _acted_channels(st, BOTH):
             out[ch] = out[ch] * (1.0 + gain_drift(st.time, st.form, p["amplitude"], p["tau"], _walk(st, ch),
-                                                  p["centre"]))
+                                                  p["share"]))
     return out
 
 
@@ -659,7 +691,7 @@ def _walk(st: Setup, channel: str) -> np.ndarray | None:
 def _acted_channels(st: Setup, wanted) -> tuple:
     """The recorded channels the effect acts on."""
     case = st.case
-    if case in ("delta_e_shifted", "sensor_nonlinearity", "continuum_rod"):
+    if case in ("delta_e_shifted", "sensor_nonlinearity", "continuum_rod", "magnetostriction_law"):
         acted = ("displacement",)
     elif case in ("sensor_offset_drift", "sensor_gain_drift", "mains_pickup"):
         ch = st.params["channel"]

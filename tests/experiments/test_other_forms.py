@@ -18,7 +18,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 SHORT = 600
 #: Cases whose effect has a size knob that switches it off at 0.
 SIZED = ("delta_e_shifted", "saturating_amplifier", "sensor_nonlinearity", "heating_other_law",
-         "sensor_offset_drift", "sensor_gain_drift", "mains_pickup", "two_phase_rod")
+         "sensor_offset_drift", "sensor_gain_drift", "mains_pickup", "two_phase_rod", "magnetostriction_law")
 
 
 def test_imports_nothing_of_the_fitter():
@@ -179,3 +179,27 @@ def test_command_line_writes_csv_sidecar_and_truth(tmp_path):
     assert header == "time,field,magnetization"
     assert out.with_suffix(".json").exists() and (tmp_path / "truth.json").exists()
     assert math.isfinite(float(out.read_text().splitlines()[1].split(",")[2]))
+
+
+@pytest.mark.parametrize("form", ["tanh_saturating", "gaussian_saturating", "power"])
+def test_magnetostriction_laws_are_even_zero_at_zero_and_not_polynomials(form):
+    m = np.linspace(-1.0, 1.0, 2001)
+    law = of.magnetostriction(m * 8e5, 8e5, form, 0.4, 3.0)
+    np.testing.assert_allclose(law, law[::-1], rtol=0, atol=1e-15)
+    assert law[1000] == 0.0 and np.all(law >= 0.0)
+    # no even polynomial of degree <= 6 holds it to 1e-4 of its span (the tool's family does not contain it)
+    design = np.column_stack([m ** 2, m ** 4, m ** 6])
+    residual = law - design @ np.linalg.lstsq(design, law, rcond=None)[0]
+    assert np.max(np.abs(residual)) > 1e-4 * np.ptp(law)
+
+
+@pytest.mark.parametrize("form", ["two_stage", "random_walk", "sqrt_creep"])
+def test_gain_drift_starts_at_zero_and_multiplies_the_channel(form):
+    st = of.setup("sensor_gain_drift", 2, SHORT)
+    st = replace(st, form=form, params=dict(st.params, channel="both"))
+    drifted, plain = of.forward(st), of.forward(st.sized(0.0))
+    walk = of._walk(st, "magnetization")
+    expected = plain["magnetization"] * (1.0 + of.gain_drift(st.time, form, st.params["amplitude"], st.params["tau"],
+                                                             walk, st.params["share"]))
+    np.testing.assert_allclose(drifted["magnetization"], expected, rtol=1e-12)
+    assert drifted["magnetization"][0] == pytest.approx(plain["magnetization"][0], rel=1e-12)
