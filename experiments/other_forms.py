@@ -532,7 +532,8 @@ def _mechanics_draw(rng, case: str) -> tuple[dict, str, float]:
 def _drift_draw(rng, case: str, form: str, duration: float) -> dict:
     """A sensor's offset drift of 1-5 % of the channel's span, or a gain drift of 3-8 % (either sign; a
     two-stage warm-up with a fast time constant of 0.05-0.2 records and 30-70 % share, a walk low-passed at
-    1-3 cycles per record, or a square-root creep); on one channel or both."""
+    1-3 cycles per record, or a square-root creep); on one channel or both (the displacement sensor's drift
+    0.3-1.5 times the magnetization sensor's, either sign)."""
     if case == "sensor_offset_drift":
         return {"amplitude": rng.uniform(0.01, 0.05) * rng.choice([-1.0, 1.0]),
                 "tau": rng.uniform(0.1, 0.8) * duration, "cutoff_cycles": rng.uniform(1.0, 4.0),
@@ -541,7 +542,10 @@ def _drift_draw(rng, case: str, form: str, duration: float) -> dict:
     return {"amplitude": rng.uniform(0.03, 0.08) * rng.choice([-1.0, 1.0]), "tau": rng.uniform(0.05, 0.2) * duration,
             "share": rng.uniform(0.3, 0.7), "cutoff_cycles": rng.uniform(1.0, 3.0),
             "channel": _choice(rng, ("magnetization", "displacement", "both")),
-            "walk_seed": int(rng.integers(2 ** 31))}
+            "walk_seed": int(rng.integers(2 ** 31)),
+            # two sensors (a pick-up coil, a displacement probe) do not share their gain's drift: the
+            # displacement sensor's is this multiple of the magnetization sensor's
+            "displacement_ratio": rng.uniform(0.3, 1.5) * rng.choice([-1.0, 1.0])}
 
 
 def _input_dynamics_draw(rng, form: str, sample_rate: float) -> dict:
@@ -670,8 +674,8 @@ def forward(st: Setup) -> dict:
                 out[ch] = out[ch] + drift(st.time, st.form, p["amplitude"] * span, p["tau"], _walk(st, ch))
     elif case == "sensor_gain_drift":
         for ch in _acted_channels(st, BOTH):
-            out[ch] = out[ch] * (1.0 + gain_drift(st.time, st.form, p["amplitude"], p["tau"], _walk(st, ch),
-                                                  p["share"]))
+            amplitude = p["amplitude"] * (p["displacement_ratio"] if ch == "displacement" else 1.0)
+            out[ch] = out[ch] * (1.0 + gain_drift(st.time, st.form, amplitude, p["tau"], _walk(st, ch), p["share"]))
     return out
 
 

@@ -198,8 +198,9 @@ def test_gain_drift_starts_at_zero_and_multiplies_the_channel(form):
     st = of.setup("sensor_gain_drift", 2, SHORT)
     st = replace(st, form=form, params=dict(st.params, channel="both"))
     drifted, plain = of.forward(st), of.forward(st.sized(0.0))
-    walk = of._walk(st, "magnetization")
-    expected = plain["magnetization"] * (1.0 + of.gain_drift(st.time, form, st.params["amplitude"], st.params["tau"],
-                                                             walk, st.params["share"]))
-    np.testing.assert_allclose(drifted["magnetization"], expected, rtol=1e-12)
-    assert drifted["magnetization"][0] == pytest.approx(plain["magnetization"][0], rel=1e-12)
+    for channel, ratio in (("magnetization", 1.0), ("displacement", st.params["displacement_ratio"])):
+        change = of.gain_drift(st.time, form, ratio * st.params["amplitude"], st.params["tau"], of._walk(st, channel),
+                               st.params["share"])
+        np.testing.assert_allclose(drifted[channel], plain[channel] * (1.0 + change), rtol=1e-12)
+        assert drifted[channel][0] == pytest.approx(plain[channel][0], rel=1e-12)
+        assert 0.01 < np.max(np.abs(change)) < 0.5  # a drift of a few %, not a broken sensor
