@@ -77,6 +77,10 @@ StepBuffers = namedtuple("StepBuffers", [
     "truth_clipped", "value_true", "slope_scratch", "second_scratch"])
 #: All fixed data of one env step: action tolerance, then PlantParams, ScoreParams, ObservationLayout.
 EnvParams = namedtuple("EnvParams", ["tolerance", "plant", "score", "layout"])
+#: The Gaussian likelihood of a grid posterior (:class:`~hyst_gym.envs.posterior.GridPosterior`): the measured
+#: columns it reads, their normalization scales, the noise variance sigma**2 (normalized units) and the node
+#: simulators per sub-env (one row each of the node plants' :class:`PlantState`).
+LikelihoodParams = namedtuple("LikelihoodParams", ["channels", "scales", "variance", "per"])
 
 
 # plant_step, score_step, clip_actions, finish_step and the estimator's estimator_step,
@@ -321,9 +325,47 @@ def excitation_step(actions, active, plant, view, buffers, params, estimator):
     return 0
 
 
+@njit(cache=True)
+def posterior_step(update_rows, measured, log_post, field, stepping, command, active, plant, plant_params,
+                   likelihood):
+    """One step of a grid posterior's node simulators (the plants only: no estimator bank, score or
+    observation), with its log-likelihood update first.
+
+    ``update_rows``: sub-envs whose ``log_post`` rows ((n, per), node-major as the node plants) gain the
+    Gaussian log-likelihood ``-0.5*sum(residual**2)/sigma**2`` of their normalized outputs ``measured``
+    ((n, channels)) against the node plants' noise-free outputs (before this step). Then, if ``stepping``,
+    every node plant of sub-env ``i`` takes the field command ``clip(field[i], -1, 1)*field_limit``
+    (:func:`plant_step`, ``command`` its scratch, ``active`` all True). ``plant`` (:class:`PlantState`),
+    ``plant_params`` (:class:`PlantParams`) and ``likelihood`` (:class:`LikelihoodParams`) come as plain
+    tuples. Returns 1 (nothing changed) if a field is NaN, else 0."""
+    like, nodes = LikelihoodParams(*likelihood), PlantState(*plant)
+    if stepping:
+        for i in range(field.shape[0]):
+            if field[i] != field[i]:
+                return 1
+    per, channels, scales, variance = like.per, like.channels, like.scales, like.variance
+    predicted = nodes.measured
+    for i in update_rows:
+        for j in range(per):
+            row = i * per + j
+            total = 0.0
+            for c in range(channels.shape[0]):
+                residual = measured[i, c] - predicted[row, channels[c]] / scales[c]
+                total += residual * residual
+            log_post[i, j] -= 0.5 * total / variance
+    if stepping:
+        field_limit = PlantParams(*plant_params).field_limit
+        for i in range(field.shape[0]):
+            value = min(max(field[i], -1.0), 1.0) * field_limit
+            for j in range(per):
+                command[i * per + j] = value
+        plant_step(command, active, plant, plant_params)
+    return 0
+
+
 __all__ = ["EnvParams", "EstimateView", "ObservationLayout", "PlantParams", "PlantState", "ScoreParams", "StepBuffers",
-           "clip_actions", "excitation_step", "fill_info", "fill_observation", "finish_step", "plant_step",
-           "score_step"]
+           "LikelihoodParams", "clip_actions", "excitation_step", "fill_info", "fill_observation", "finish_step",
+           "plant_step", "posterior_step", "score_step"]
 
 
 #: printed once per process, on stderr, before the first environment compiles its kernels

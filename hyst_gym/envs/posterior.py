@@ -24,6 +24,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..estimation import as_kernel_tuples
+from .kernels import LikelihoodParams, posterior_step
+
 #: grid nodes of the start temperature per sub-environment
 POSTERIOR_NODES = 64
 #: a node holding more than this posterior mass switches the estimate to the parabola vertex
@@ -64,12 +67,26 @@ class GridPosterior:
         self.node_temperature = low + (high - low) * (np.arange(self.nodes) + 0.5) / self.nodes
         self.log_prior = np.log(1.0 - np.cos(2 * np.pi * (np.arange(self.nodes) + 0.5) / self.nodes))
         per = self.nodes * self.k_nodes
-        self.sim = BatchSimulator(config.replace(output_noise=0.0), IDENTIFICATION, self.n * per)
+        # noise-free in every channel (the temperature sensor's too: its draws would be read by nobody)
+        self.sim = BatchSimulator(config.replace(output_noise=0.0, temperature_sensor_noise=0.0), IDENTIFICATION,
+                                  self.n * per)
         for row in range(self.n * per):
             self.sim.set_generator(row, np.random.default_rng(row))
         self.sim.set_pinning(np.arange(self.n * per), np.tile(self.node_k, self.n * self.nodes))
         self.log_post = np.zeros((self.n, self.nodes, self.k_nodes))
         self._commands = np.zeros((self.n * per, 2))
+        # The compiled step (kernels.posterior_step) moves only the node plants: the simulator's estimator
+        # bank, score, info and observation are never read here, and skipping them is most of the step's cost.
+        channels = np.array(self.channels, dtype=np.int64)
+        self._likelihood = LikelihoodParams(channels=channels, scales=self.sim.scales[channels],
+                                            variance=float(config.output_noise) ** 2,
+                                            per=per)
+        self._kernel_args = (np.ones(self.n * per, dtype=bool),
+                             *as_kernel_tuples(self.sim._plant, self.sim._plant_params, self._likelihood))
+        self._node_command = np.zeros(self.n * per)
+        self._no_rows = np.zeros(0, dtype=np.int64)
+        self._no_field = np.zeros(self.n)
+        self._log_post_flat = self.log_post.reshape(self.n, per)  # a view: the kernel writes log_post
 
     def restart(self, rows) -> None:
         """New episodes in sub-envs ``rows``: every node simulator at its grid node, the log-prior."""
@@ -84,17 +101,28 @@ class GridPosterior:
     def update(self, measured: np.ndarray, rows) -> None:
         """Add the log-likelihood of the normalized outputs ``measured`` ((n, channels), the sensors'
         observation columns of the last step) of sub-envs ``rows`` against the nodes' noise-free outputs."""
-        sim = self.sim
-        sigma = self.config.output_noise
-        predicted = (sim.measured[:, self.channels] / sim.scales[self.channels]).reshape(
-            -1, self.nodes, self.k_nodes, len(self.channels))
-        residual = measured[rows, None, None, :] - predicted[rows]
-        self.log_post[rows] -= 0.5 * np.sum(residual ** 2, axis=3) / sigma ** 2
+        self.advance(measured, rows, None)
 
     def step(self, field: np.ndarray) -> None:
         """Step every node simulator of every sub-env with its sub-env's normalized field command (n,)."""
-        self._commands[:, 0] = np.repeat(np.clip(field, -1.0, 1.0), self.nodes * self.k_nodes)
-        self.sim.step(self._commands)
+        self.advance(None, self._no_rows, field)
+
+    def advance(self, measured, rows, field) -> None:
+        """:meth:`update` with ``measured`` of sub-envs ``rows`` (skipped where ``rows`` is empty), then
+        :meth:`step` with ``field`` (skipped where None), in one compiled call (:func:`~.kernels.posterior_step`).
+        A NaN field raises the simulator's one-line error, with nothing changed."""
+        rows = np.asarray(rows, dtype=np.int64)
+        if rows.shape[0] and not self.config.output_noise > 0:
+            raise ValueError("GridPosterior.update: the likelihood needs output_noise > 0, got "
+                             f"{self.config.output_noise!r}")
+        measured = np.zeros((self.n, len(self.channels))) if measured is None else \
+            np.asarray(measured, dtype=np.float64)
+        stepping = field is not None
+        field = self._no_field if field is None else np.asarray(field, dtype=np.float64)
+        if posterior_step(rows, measured, self._log_post_flat, field, stepping, self._node_command,
+                          *self._kernel_args):
+            self._commands[:, 0] = np.repeat(field, self.nodes * self.k_nodes)
+            self.sim.check_actions(self._commands)  # raises, naming the value
 
     def _marginal(self):
         """(a at the T0 nodes (n, nodes), the log-posterior marginal over k (n, nodes), its weights)."""

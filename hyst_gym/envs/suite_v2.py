@@ -201,10 +201,8 @@ class _Calibrate(_Scored):
             return actions
         field = np.asarray(actions, dtype=np.float32).astype(np.float64)[:, 0]
         going = ~self._fresh if skip is None else ~self._fresh & ~skip
-        if going.any():
-            self.posterior.update(self._measured, np.flatnonzero(going))
+        self.posterior.advance(self._measured, np.flatnonzero(going), field)  # update, then step
         self._fresh[:] = False
-        self.posterior.step(field)
         config = self.config
         normalized = 2.0 * (self.posterior.estimate() - config.theta_min) / config.theta_width - 1.0
         return np.stack([field, np.clip(normalized, -1.0, 1.0)], axis=1).astype(np.float32)
