@@ -23,7 +23,7 @@ from numba import njit
 from collections import namedtuple
 
 from ..estimation._kernels import BankParams, BankState, EstimatorState, estimator_step, interpolate_bank
-from ..physics.hysteresis import advance_each
+from ..physics.hysteresis import advance_each, advance_shared
 from ..physics.linear_system import lti_step
 from ..physics.thermal import a_law_kernel, mean_square_linear_kernel, temperature_step_kernel
 
@@ -98,20 +98,36 @@ def plant_step(command, active, plant, params):
     incremented. Sub-envs with ``active[i] == False`` draw no noise.
     """
     plant, params = PlantState(*plant), PlantParams(*params)
+    field_from = limit_fields(command, plant, params)
+    advance_each(plant.magnetization, field_from, plant.field, plant.a_true, params.k, params.alpha, params.Ms,
+                 params.c, params.kind, params.max_field_step)
+    finish_plants(field_from, active, plant, params)
+
+
+@njit(cache=True, inline="always")
+def limit_fields(command, plant, params):
+    """The first part of :func:`plant_step` (named ``plant`` and ``params``): the field H1 within the field
+    and slew limits into ``plant.field``, M kept as the step's start; returns H0 (a new array)."""
+    field, magnetization, magnetization_prev = plant.field, plant.magnetization, plant.magnetization_prev
+    field_limit, max_change = params.field_limit, params.max_change
+    field_from = field.copy()
+    for i in range(field.shape[0]):
+        target = min(max(command[i], -field_limit), field_limit)
+        field[i] = min(max(target, field_from[i] - max_change), field_from[i] + max_change)
+        magnetization_prev[i] = magnetization[i]
+    return field_from
+
+
+@njit(cache=True, inline="always")
+def finish_plants(field_from, active, plant, params):
+    """The part of :func:`plant_step` after model (6) has moved M (named ``plant`` and ``params``): the
+    transducer, the thermal model, a(T) and the (noisy) measurement."""
     field, magnetization, magnetization_prev, state = plant.field, plant.magnetization, plant.magnetization_prev, \
         plant.state
     temperature, steps, measured, measured_temperature = plant.temperature, plant.steps, plant.measured, \
         plant.measured_temperature
     n = field.shape[0]
     s = state.shape[1]
-    field_limit, max_change = params.field_limit, params.max_change
-    field_from = field.copy()
-    for i in range(n):
-        target = min(max(command[i], -field_limit), field_limit)
-        field[i] = min(max(target, field_from[i] - max_change), field_from[i] + max_change)
-        magnetization_prev[i] = magnetization[i]
-    advance_each(magnetization, field_from, field, plant.a_true, params.k, params.alpha, params.Ms, params.c,
-                 params.kind, params.max_field_step)
     drive_gain = params.drive_gain
     for i in range(n):
         m0 = magnetization_prev[i]
@@ -354,12 +370,20 @@ def posterior_step(update_rows, measured, log_post, field, stepping, command, ac
                 total += residual * residual
             log_post[i, j] -= 0.5 * total / variance
     if stepping:
-        field_limit = PlantParams(*plant_params).field_limit
+        params = PlantParams(*plant_params)
         for i in range(field.shape[0]):
-            value = min(max(field[i], -1.0), 1.0) * field_limit
+            value = min(max(field[i], -1.0), 1.0) * params.field_limit
             for j in range(per):
                 command[i * per + j] = value
-        plant_step(command, active, plant, plant_params)
+        field_from = limit_fields(command, nodes, params)
+        # a sub-env's node plants share their field path (same commands since their common restart): model (6)
+        # moves them as one bank (advance_shared, the arithmetic of advance_each, vectorized over the nodes)
+        for i in range(field.shape[0]):
+            lo, hi = i * per, (i + 1) * per
+            advance_shared(nodes.magnetization[lo:hi], field_from[lo], nodes.field[lo], nodes.a_true[lo:hi],
+                           params.k[lo:hi], params.alpha[lo:hi], params.Ms[lo:hi], params.c[lo:hi], params.kind,
+                           params.max_field_step)
+        finish_plants(field_from, active, nodes, params)
     return 0
 
 
