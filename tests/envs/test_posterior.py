@@ -1,0 +1,69 @@
+"""The calibration tasks' grid posterior (the estimator in the loop) against a slow, independent recomputation:
+one plain simulator per grid node, stepped through the simulator's own full step, and the Gaussian
+log-likelihood and the Bayes estimate written out in numpy here."""
+
+import gymnasium
+import numpy as np
+import pytest
+
+import hyst_gym  # noqa: F401
+from hyst_gym.envs.core import IDENTIFICATION, BatchSimulator
+from hyst_gym.envs.posterior import CONCENTRATED
+
+
+def _slow_nodes(posterior):
+    """A plain simulator per (T0, k) node, started at its node, noise-free, stepped the ordinary way."""
+    per = posterior.nodes * posterior.k_nodes
+    sim = BatchSimulator(posterior.config.replace(output_noise=0.0), IDENTIFICATION, per)
+    for row in range(per):
+        sim.set_generator(row, np.random.default_rng(1000 + row))
+    sim.set_pinning(np.arange(per), np.tile(posterior.node_k, posterior.nodes))
+    sim.reset(np.arange(per), {"initial_temperature": np.repeat(posterior.node_temperature, posterior.k_nodes)})
+    return sim
+
+
+def _bayes_estimate(log_post, a_nodes):
+    """The posterior mean of a, or the parabola vertex through the best node once it holds most of the mass."""
+    weights = np.exp(log_post - log_post.max())
+    weights /= weights.sum()
+    if weights.max() <= CONCENTRATED:
+        return float(weights @ a_nodes), False
+    best = min(max(int(np.argmax(log_post)), 1), log_post.size - 2)
+    left, centre, right = log_post[best - 1:best + 2]
+    curvature = left - 2 * centre + right
+    offset = min(max(0.5 * (left - right) / curvature, -1.0), 1.0) if curvature < 0 else 0.0
+    return float(a_nodes[best] + offset * (a_nodes[best + 1] - a_nodes[best])), True
+
+
+@pytest.mark.parametrize("task", ["hyst_gym/HotCalibrate-v0", "hyst_gym/HotCalibrateNoisy-v0",
+                                  "hyst_gym/DisplacementOnly-v0", "hyst_gym/HotCalibrateUnknownK-v0"])
+def test_posterior_matches_a_slow_recomputation_per_node(task):
+    env = gymnasium.make(task)
+    posterior = env.unwrapped.posterior
+    slow = _slow_nodes(posterior)
+    channels, sigma = posterior.channels, posterior.config.output_noise
+    log_post = np.repeat(posterior.log_prior, posterior.k_nodes).astype(float)
+    observation, _ = env.reset(seed=7)
+    rng = np.random.default_rng(3)
+    concentrated = []
+    for t in range(40):  # up (the field moves 2.5 % of its limit per step), then random
+        field = np.ones(1, np.float32) if t < 30 else rng.uniform(-1.0, 1.0, (1,)).astype(np.float32)
+        if t > 0:  # the outputs of step t - 1 against the nodes' outputs after it
+            predicted = slow.measured[:, channels] / slow.scales[channels]
+            residual = observation[:len(channels)].astype(np.float64) - predicted
+            log_post -= 0.5 * np.sum(residual ** 2, axis=1) / sigma ** 2
+        slow.step(np.column_stack([np.full(slow.n, float(field[0])), np.zeros(slow.n)]))
+        observation, _, terminated, truncated, info = env.step(field)
+        assert not (terminated or truncated)
+        # the same physics kernels move the node plants: their outputs and a agree bit for bit
+        assert np.array_equal(posterior.sim.measured, slow.measured)
+        assert np.array_equal(posterior.sim.a_true, slow.a_true)
+        np.testing.assert_allclose(posterior.log_post.ravel(), log_post, rtol=1e-12, atol=1e-9)
+        if posterior.k_nodes == 1:
+            expected, peaked = _bayes_estimate(log_post, slow.a_true)
+            concentrated.append(peaked)
+            # the estimate reaches the simulator as the action's float32 on [-1, 1]: its rounding, no more
+            float32_step = posterior.config.theta_width * 2.0 ** -23
+            assert info["a_estimate"] == pytest.approx(expected, rel=0.0, abs=float32_step)
+    if task == "hyst_gym/HotCalibrate-v0":  # both estimates (mean, then vertex) were checked
+        assert not concentrated[0] and any(concentrated)
