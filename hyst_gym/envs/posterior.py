@@ -87,6 +87,7 @@ class GridPosterior:
         self._no_rows = np.zeros(0, dtype=np.int64)
         self._no_field = np.zeros(self.n)
         self._log_post_flat = self.log_post.reshape(self.n, per)  # a view: the kernel writes log_post
+        self._marginal_cache = None
 
     def restart(self, rows) -> None:
         """New episodes in sub-envs ``rows``: every node simulator at its grid node, the log-prior."""
@@ -97,6 +98,7 @@ class GridPosterior:
         temperatures = np.tile(np.repeat(self.node_temperature, self.k_nodes), rows.shape[0])
         self.sim.reset(sub, {"initial_temperature": temperatures})
         self.log_post[rows] = self.log_prior[:, None]
+        self._marginal_cache = None
 
     def update(self, measured: np.ndarray, rows) -> None:
         """Add the log-likelihood of the normalized outputs ``measured`` ((n, channels), the sensors'
@@ -117,6 +119,7 @@ class GridPosterior:
                              f"{self.config.output_noise!r}")
         measured = np.zeros((self.n, len(self.channels))) if measured is None else \
             np.asarray(measured, dtype=np.float64)
+        self._marginal_cache = None
         stepping = field is not None
         field = self._no_field if field is None else np.asarray(field, dtype=np.float64)
         if posterior_step(rows, measured, self._log_post_flat, field, stepping, self._node_command,
@@ -125,14 +128,21 @@ class GridPosterior:
             self.sim.check_actions(self._commands)  # raises, naming the value
 
     def _marginal(self):
-        """(a at the T0 nodes (n, nodes), the log-posterior marginal over k (n, nodes), its weights)."""
+        """(a at the T0 nodes (n, nodes), the log-posterior marginal over k (n, nodes), its weights); computed
+        once per step or restart (estimate and spread both read it)."""
+        if self._marginal_cache is not None:
+            return self._marginal_cache
         joint = self.log_post
         a_nodes = self.sim.a_true.reshape(-1, self.nodes, self.k_nodes)[:, :, 0]  # a depends on T0 only
-        peak = joint.max(axis=2)
-        log_post = peak + np.log(np.exp(joint - peak[:, :, None]).sum(axis=2))
+        if self.k_nodes == 1:  # the log-sum-exp over one k node is the node itself: peak + log(1)
+            log_post = joint[:, :, 0]
+        else:
+            peak = joint.max(axis=2)
+            log_post = peak + np.log(np.exp(joint - peak[:, :, None]).sum(axis=2))
         weights = np.exp(log_post - log_post.max(axis=1, keepdims=True))
         weights /= weights.sum(axis=1, keepdims=True)
-        return a_nodes, log_post, weights
+        self._marginal_cache = (a_nodes, log_post, weights)
+        return self._marginal_cache
 
     def estimate(self) -> np.ndarray:
         """The estimate of a per sub-environment (A/m), from the nodes' a after their last step (module doc)."""
