@@ -387,9 +387,35 @@ def posterior_step(update_rows, measured, log_post, field, stepping, command, ac
     return 0
 
 
+@njit(cache=True)
+def posterior_vertex(log_post, weights, a_nodes, mean, concentrated, estimate):
+    """The grid posterior's estimate over one parameter (T0): per sub-env ``i``, the vertex of the parabola
+    through ``log_post[i]`` at its best node (clipped to the interior) and its neighbours (the offset within
+    one cell; none where the parabola has no maximum), where the largest of ``weights[i]`` exceeds
+    ``concentrated``; the posterior mean ``mean[i]`` otherwise. ``a_nodes`` (n, nodes): a at the nodes (A/m);
+    writes ``estimate`` (n,). The arithmetic of the numpy form in :meth:`GridPosterior.estimate`, element by
+    element (the sums stay in numpy, whose pairwise order they keep)."""
+    n, nodes = log_post.shape
+    for i in range(n):
+        best, top, heaviest = 0, log_post[i, 0], weights[i, 0]
+        for j in range(1, nodes):
+            if log_post[i, j] > top:
+                best, top = j, log_post[i, j]
+            heaviest = max(heaviest, weights[i, j])
+        if not heaviest > concentrated:
+            estimate[i] = mean[i]
+            continue
+        best = min(max(best, 1), nodes - 2)
+        left, centre, right = log_post[i, best - 1], log_post[i, best], log_post[i, best + 1]
+        curvature = left - 2 * centre + right
+        offset = 0.5 * (left - right) / curvature if curvature < 0 else 0.0
+        offset = min(max(offset, -1.0), 1.0)
+        estimate[i] = a_nodes[i, best] + offset * (a_nodes[i, best + 1] - a_nodes[i, best])
+
+
 __all__ = ["EnvParams", "EstimateView", "ObservationLayout", "PlantParams", "PlantState", "ScoreParams", "StepBuffers",
            "LikelihoodParams", "clip_actions", "excitation_step", "fill_info", "fill_observation", "finish_step",
-           "plant_step", "posterior_step", "score_step"]
+           "plant_step", "posterior_step", "posterior_vertex", "score_step"]
 
 
 #: printed once per process, on stderr, before the first environment compiles its kernels
