@@ -34,7 +34,7 @@ from ..physics import FirstOrderPlant, LumpedLinear, LumpedNonlinear
 from .config import MECHANICAL_ESTIMATOR_GAMMA, EnvConfig
 from .kernels import (EnvParams, EstimateView, ObservationLayout, PlantParams, PlantState, ScoreParams, StepBuffers,
                       announce_compilation, clip_actions, excitation_step, fill_info, fill_observation, finish_step,
-                      plant_step)
+                      identification_step, plant_step)
 
 EXCITATION = "excitation"
 ESTIMATION = "estimation"
@@ -204,6 +204,8 @@ def step_kernels(mode: str, estimator: str) -> tuple:
     """The compiled kernels an env of ``mode`` steps with (to tell whether they are cached)."""
     if uses_fused_step(mode, estimator):
         return (fill_observation, fill_info, excitation_step)
+    if mode == IDENTIFICATION:
+        return (fill_observation, fill_info, identification_step)
     return (fill_observation, fill_info, clip_actions, plant_step, finish_step)
 
 
@@ -443,6 +445,10 @@ class BatchSimulator:
                                                 estimator.kernel_state, estimator.observer_params,
                                                 estimator.hold_params(config.dt))
             self._fused_tuples = (*as_kernel_tuples(self._plant, self._view, self._buffers, params), estimator_tuples)
+        # Identification (the agent's estimate): the whole step is one kernel call too.
+        if self.mode == IDENTIFICATION:
+            self._identification_tuples = as_kernel_tuples(self._plant, self._view, self._buffers, params,
+                                                           self.bank.kernel_state, self.bank.kernel_params)
 
     # ------------------------------------------------------------------ seeding and reset
 
@@ -669,6 +675,9 @@ class BatchSimulator:
                 self.check_actions(actions)  # raises, naming the value
             if status == 2:
                 raise ValueError("step: the simulated field or output is not finite")
+        elif self.mode == IDENTIFICATION:
+            if identification_step(actions, active, *self._identification_tuples):
+                self.check_actions(actions)  # raises, naming the value
         else:
             if not clip_actions(actions, ACTION_TOLERANCE, self._clipped):
                 self.check_actions(actions)  # raises, naming the value

@@ -22,7 +22,8 @@ from numba import njit
 
 from collections import namedtuple
 
-from ..estimation._kernels import BankParams, BankState, EstimatorState, estimator_step, interpolate_bank
+from ..estimation._kernels import (BankParams, BankState, EstimatorState, advance_bank, estimator_step,
+                                  interpolate_bank)
 from ..physics.hysteresis import advance_each, advance_shared
 from ..physics.linear_system import lti_step
 from ..physics.thermal import a_law_kernel, mean_square_linear_kernel, temperature_step_kernel
@@ -413,9 +414,31 @@ def posterior_vertex(log_post, weights, a_nodes, mean, concentrated, estimate):
         estimate[i] = a_nodes[i, best] + offset * (a_nodes[i, best + 1] - a_nodes[i, best])
 
 
+@njit(cache=True)
+def identification_step(actions, active, plant, view, buffers, params, bank, bank_params):
+    """One whole step of an env whose estimate is the agent's (Identification) in one call: actions ->
+    :func:`plant_step` -> the model bank at the new field (:func:`~hyst_gym.estimation._kernels.advance_bank`,
+    for the PE integrand) -> :func:`finish_step`. Arguments as :func:`excitation_step`, then the bank's
+    BankState and BankParams; all plain tuples. Returns 0, or 1 (an action is not finite or outside [-1, 1];
+    nothing changed)."""
+    named = EnvParams(*params)
+    named_buffers = StepBuffers(*buffers)
+    clipped, command = named_buffers.clipped, named_buffers.command
+    if not clip_actions(actions, named.tolerance, clipped):
+        return 1
+    field_limit = PlantParams(*named.plant).field_limit
+    for i in range(command.shape[0]):
+        command[i] = clipped[i, 0] * field_limit
+    plant_step(command, active, plant, named.plant)
+    advance_bank(bank, PlantState(*plant).field, bank_params)
+    finish_step(plant, view, buffers, named.score, named.layout, bank, bank_params)
+    return 0
+
+
 __all__ = ["EnvParams", "EstimateView", "ObservationLayout", "PlantParams", "PlantState", "ScoreParams", "StepBuffers",
            "LikelihoodParams", "clip_actions", "excitation_step", "fill_info", "fill_observation", "finish_step",
-           "plant_step", "posterior_step", "posterior_vertex", "score_step"]
+           "finish_plants", "identification_step", "limit_fields", "plant_step", "posterior_step", "posterior_vertex",
+           "score_step"]
 
 
 #: printed once per process, on stderr, before the first environment compiles its kernels
