@@ -389,14 +389,17 @@ def posterior_step(update_rows, measured, log_post, field, stepping, command, ac
 
 
 @njit(cache=True)
-def posterior_vertex(log_post, weights, a_nodes, mean, concentrated, estimate):
-    """The grid posterior's estimate over one parameter (T0): per sub-env ``i``, the vertex of the parabola
-    through ``log_post[i]`` at its best node (clipped to the interior) and its neighbours (the offset within
-    one cell; none where the parabola has no maximum), where the largest of ``weights[i]`` exceeds
-    ``concentrated``; the posterior mean ``mean[i]`` otherwise. ``a_nodes`` (n, nodes): a at the nodes (A/m);
-    writes ``estimate`` (n,). The arithmetic of the numpy form in :meth:`GridPosterior.estimate`, element by
+def posterior_vertex(log_post, joint, weights, a_nodes, mean, concentrated, estimate):
+    """The grid posterior's estimate of a (:meth:`~hyst_gym.envs.posterior.GridPosterior.estimate`): per
+    sub-env ``i`` where the largest of ``weights[i]`` exceeds ``concentrated``, the vertex of the parabola
+    through the marginal ``log_post[i]`` (n, nodes) at its best node (clipped to the interior) and its
+    neighbours (the offset within one cell; none where it has no maximum) -- with a k grid (``joint`` (n, nodes,
+    k_nodes), k_nodes > 1), the vertex of the quadratic through the joint log-posterior's 3 x 3 neighbourhood of
+    its best interior node where that has a maximum; the posterior mean ``mean[i]`` otherwise. ``a_nodes``
+    (n, nodes): a at the nodes (A/m); writes ``estimate`` (n,). The arithmetic of the numpy form, element by
     element (the sums stay in numpy, whose pairwise order they keep)."""
     n, nodes = log_post.shape
+    k_nodes = joint.shape[2]
     for i in range(n):
         best, top, heaviest = 0, log_post[i, 0], weights[i, 0]
         for j in range(1, nodes):
@@ -410,8 +413,33 @@ def posterior_vertex(log_post, weights, a_nodes, mean, concentrated, estimate):
         left, centre, right = log_post[i, best - 1], log_post[i, best], log_post[i, best + 1]
         curvature = left - 2 * centre + right
         offset = 0.5 * (left - right) / curvature if curvature < 0 else 0.0
+        if k_nodes > 1:
+            best, offset = _joint_vertex(joint[i], best, offset)
         offset = min(max(offset, -1.0), 1.0)
         estimate[i] = a_nodes[i, best] + offset * (a_nodes[i, best + 1] - a_nodes[i, best])
+
+
+@njit(cache=True, inline="always")
+def _joint_vertex(joint, best_marginal, offset_marginal):
+    """(T0 node, offset in T0 cells) of the vertex of the quadratic through ``joint`` (nodes, k_nodes) about its
+    first largest entry (clipped to the interior); ``(best_marginal, offset_marginal)`` where it has no maximum."""
+    nodes, k_nodes = joint.shape
+    flat, top = 0, joint[0, 0]
+    for t in range(nodes):
+        for q in range(k_nodes):
+            if joint[t, q] > top:
+                flat, top = t * k_nodes + q, joint[t, q]
+    i = min(max(flat // k_nodes, 1), nodes - 2)
+    j = min(max(flat % k_nodes, 1), k_nodes - 2)
+    centre = joint[i, j]
+    g_t, g_k = 0.5 * (joint[i + 1, j] - joint[i - 1, j]), 0.5 * (joint[i, j + 1] - joint[i, j - 1])
+    h_tt = joint[i + 1, j] - 2 * centre + joint[i - 1, j]
+    h_kk = joint[i, j + 1] - 2 * centre + joint[i, j - 1]
+    h_tk = 0.25 * (joint[i + 1, j + 1] - joint[i + 1, j - 1] - joint[i - 1, j + 1] + joint[i - 1, j - 1])
+    det = h_tt * h_kk - h_tk * h_tk
+    if h_tt < 0 and det > 0:
+        return i, -(h_kk * g_t - h_tk * g_k) / det
+    return best_marginal, offset_marginal
 
 
 @njit(cache=True)

@@ -145,24 +145,13 @@ class GridPosterior:
         return self._marginal_cache
 
     def estimate(self) -> np.ndarray:
-        """The estimate of a per sub-environment (A/m), from the nodes' a after their last step (module doc)."""
+        """The estimate of a per sub-environment (A/m), from the nodes' a after their last step (module doc;
+        the mean and the vertex are :func:`~.kernels.posterior_vertex`'s)."""
         a_nodes, log_post, weights = self._marginal()
         mean = (weights * a_nodes).sum(axis=1)
-        if self.k_nodes == 1:  # the compiled form of the lines below (same arithmetic)
-            estimate = np.empty(self.n)
-            posterior_vertex(log_post, weights, a_nodes, mean, CONCENTRATED, estimate)
-            return estimate
-        best = np.clip(np.argmax(log_post, axis=1), 1, self.nodes - 2)
-        rows = np.arange(log_post.shape[0])
-        left, centre, right = (log_post[rows, best - 1], log_post[rows, best], log_post[rows, best + 1])
-        curvature = left - 2 * centre + right
-        offset = np.where(curvature < 0, 0.5 * (left - right) / np.where(curvature < 0, curvature, -1.0), 0.0)
-        if self.k_nodes > 1:
-            best, offset = self._joint_vertex(self.log_post, best, offset)
-        offset = np.clip(offset, -1.0, 1.0)
-        spacing = a_nodes[rows, best + 1] - a_nodes[rows, best]
-        vertex = a_nodes[rows, best] + offset * spacing
-        return np.where(weights.max(axis=1) > CONCENTRATED, vertex, mean)
+        estimate = np.empty(self.n)
+        posterior_vertex(log_post, self.log_post, weights, a_nodes, mean, CONCENTRATED, estimate)
+        return estimate
 
     def spread(self) -> np.ndarray:
         """The posterior standard deviation of a per sub-environment (A/m; at least the node spacing's
@@ -172,29 +161,6 @@ class GridPosterior:
         spacing = np.abs(a_nodes[:, 1] - a_nodes[:, 0])
         variance = (weights * (a_nodes - mean) ** 2).sum(axis=1)
         return np.sqrt(variance + spacing ** 2 / 12.0)
-
-    def _joint_vertex(self, joint, best_marginal, offset_marginal):
-        """(T0 node, offset in T0 cells) of the vertex of the quadratic through the joint log-posterior's
-        3 x 3 neighbourhood of its best (interior) node; the marginal parabola's where that quadratic has no
-        maximum."""
-        n = joint.shape[0]
-        flat = np.argmax(joint.reshape(n, -1), axis=1)
-        i = np.clip(flat // self.k_nodes, 1, self.nodes - 2)
-        j = np.clip(flat % self.k_nodes, 1, self.k_nodes - 2)
-        rows = np.arange(n)
-
-        def at(di, dj):
-            return joint[rows, i + di, j + dj]
-
-        centre = at(0, 0)
-        g_t, g_k = 0.5 * (at(1, 0) - at(-1, 0)), 0.5 * (at(0, 1) - at(0, -1))
-        h_tt, h_kk = at(1, 0) - 2 * centre + at(-1, 0), at(0, 1) - 2 * centre + at(0, -1)
-        h_tk = 0.25 * (at(1, 1) - at(1, -1) - at(-1, 1) + at(-1, -1))
-        det = h_tt * h_kk - h_tk ** 2
-        peaked = (h_tt < 0) & (det > 0)
-        safe = np.where(peaked, det, 1.0)
-        offset = -(h_kk * g_t - h_tk * g_k) / safe
-        return np.where(peaked, i, best_marginal), np.where(peaked, offset, offset_marginal)
 
 
 __all__ = ["CONCENTRATED", "K_TASK_NODES", "POSTERIOR_NODES", "GridPosterior"]
