@@ -38,8 +38,6 @@ GAIN_DRIFT_NAMES = {"magnetization": ("gain_drift_linear_m", "gain_drift_settlin
                     "displacement": ("gain_drift_linear_x", "gain_drift_settling_x")}
 MAINS_NAMES = {ch: tuple(f"{term}_{ch[0]}" for term in ("mains_cos", "mains_sin", "mains3_cos", "mains3_sin"))
                for ch in ("magnetization", "displacement")}
-#: The magnetostriction law's gains beyond today's M and M^2 ones: on (M/Ms)^4 and (M/Ms)^6, times Ms.
-MAGNETOSTRICTION_HIGHER = ("zeta_q4", "zeta_q6")
 #: The input map's coefficients in the order :func:`.model.mapped_field` takes them.
 INPUT_MAP_NAMES = ("input_quadratic", "input_cubic", "input_saturation", "input_saturation_negative")
 #: The input dynamics' lag and delay (s), in the order :func:`.model.input_dynamics` takes them.
@@ -164,12 +162,8 @@ def _sensor_lag_parameters(recording, structure, base_values):
 def _quadratic_parameters(recording, structure, base_values):
     m_span = base_values.get("Ms", PAPER_MS)
     gain = abs(next((base_values[g] for g in ("zetahat", "nu", "zeta_fem") if g in base_values), 1.0)) or 1.0
-    out = {"zeta_q": Parameter("zeta_q", 0.0, -1e3 * gain / m_span, 1e3 * gain / m_span,
-                               "gain units per A/m", scale=0.1 * gain / m_span)}
-    # the even law's higher terms: gains on Ms*(M/Ms)^4 and Ms*(M/Ms)^6 (:func:`.model.magnetostriction_forcing`)
-    for name in MAGNETOSTRICTION_HIGHER:
-        out[name] = Parameter(name, 0.0, -1e3 * gain, 1e3 * gain, "gain units (per Ms*(M/Ms)^n)", scale=0.1 * gain)
-    return out
+    return {"zeta_q": Parameter("zeta_q", 0.0, -1e3 * gain / m_span, 1e3 * gain / m_span,
+                                "gain units per A/m", scale=0.1 * gain / m_span)}
 
 
 def _delta_e_parameters(recording, structure, base_values):
@@ -521,13 +515,9 @@ _REGISTERED = (
                                    "displacement": _RECORD_M},
                     "rod_dynamics": {"displacement": _RECORD_M}}),
     Effect(
-        # one effect, widened: today's M^2 law (zeta_q) and an even polynomial in M/Ms up to degree 6 beside it
-        name="quadratic_magnetostriction",
-        slot="magnetostriction law (an even function of M/Ms: M^2 about the bias, with (M/Ms)^4 and (M/Ms)^6 terms)",
-        words="a magnetostriction law beyond the linearized M (13): the displacement follows M^2 (12), or an even "
-              "polynomial in M/Ms up to degree 6 (a law that saturates or steepens)",
-        parameter_names=("zeta_q",) + MAGNETOSTRICTION_HIGHER, parameters=_quadratic_parameters,
-        identified_by="zeta_q",
+        name="quadratic_magnetostriction", slot="magnetostriction law",
+        words="quadratic magnetostriction: the displacement follows M^2 (12), not the linearized M (13)",
+        parameter_names=("zeta_q",), parameters=_quadratic_parameters, identified_by="zeta_q",
         applies=_magnetostriction_applies, rate_dependent=False, rescue=(), starts=_quadratic_starts,
         strategy="quadratic_outputs", mechanical=True, details=_quadratic_details,
         confusable={"field_bias": {"displacement": _RECORD_M},

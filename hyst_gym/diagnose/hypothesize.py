@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from .decide import ACCEPT_DELTA_BIC, ACCEPT_IMPROVEMENT
-from .effects import EFFECT_PARAMETERS, MAGNETOSTRICTION_HIGHER, effect as registered, effect_starts
+from .effects import EFFECT_PARAMETERS, effect as registered, effect_starts
 from .fit import BASE_FIT_TOLERANCE, FitResult, Objective, Split, _solve_linear_outputs, global_search
 from .model import Model, Structure, base_parameters, extension_parameters, slope_factor
 from .recording import Recording
@@ -158,16 +158,11 @@ def _quadratic_output_starts(split, base, effect, model):
               _quadratic_start(model, {**base_values, **paper}, split.fit_mask)]
     if base.magnetic_values:
         starts.append(_quadratic_start(model, {**base_values, **paper, **base.magnetic_values}, split.fit_mask))
-    # the gains' ranges widened around the linear solutions (a strong law would otherwise sit at a bound)
-    widened = {}
-    for name in ("zeta_q",) + MAGNETOSTRICTION_HIGHER:
-        if name not in model.parameters:
-            continue
-        width = max(abs(v.get(name, 0.0)) for v in starts)
-        p = model.parameters[name]
-        widened[name] = replace(p, lower=-100 * width - abs(p.upper), upper=100 * width + abs(p.upper),
-                                scale=max(width, p.scale))
-    return Model(recording, structure, {**model.parameters, **widened}, split.max_field_step), starts
+    width = max(abs(v["zeta_q"]) for v in starts)
+    zeta_q = model.parameters["zeta_q"]
+    widened = replace(zeta_q, lower=-100 * width - abs(zeta_q.upper), upper=100 * width + abs(zeta_q.upper),
+                      scale=max(width, zeta_q.scale))
+    return Model(recording, structure, {**model.parameters, "zeta_q": widened}, split.max_field_step), starts
 
 
 def _linear_sensor_starts(split, base, effect, model):
@@ -262,32 +257,21 @@ def _quadratic_start(model, base_values, fit_mask):
 
 
 def _quadratic_outputs(model, base_values, m, fit_mask):
-    """Linear least squares of the displacement on the responses to M, M^2, Ms*(M/Ms)^4, Ms*(M/Ms)^6 and 1 (the
-    forcing c1*M + c2*M^2 + c4*Ms*m^4 + c6*Ms*m^6 + c0 of :func:`.model.magnetostriction_forcing`), mapped to
-    (zetahat, zeta_q, zeta_q4, zeta_q6, M0): M0 is the root of the forcing nearest the median magnetization.
-    The higher terms are solved only where the model has them free."""
-    unit = dict(base_values, zetahat=1.0, zeta_q=0.0, M0=0.0, **{n: 0.0 for n in MAGNETOSTRICTION_HIGHER})
-    ms = base_values["Ms"]
-    higher = [n for n in MAGNETOSTRICTION_HIGHER if n in model.parameters and model.parameters[n].free]
-    signals = [m, m ** 2] + [ms * (m / ms) ** (4 if n == "zeta_q4" else 6) for n in higher] + [np.ones_like(m)]
-    design = np.column_stack([model.displacement(unit, signal)[fit_mask] for signal in signals])
+    """Linear least squares of the displacement on the responses to M, M^2 and 1 (the forcing
+    c1*M + c2*M^2 + c0 = zetahat*(M - M0) + zeta_q*(M - M0)^2), mapped to (zetahat, zeta_q, M0)."""
+    unit = dict(base_values, zetahat=1.0, zeta_q=0.0, M0=0.0)
+    responses = []
+    for signal in (m, m ** 2, np.ones_like(m)):
+        responses.append(model.displacement(unit, signal)[fit_mask])
+    design = np.column_stack(responses)
     if not np.all(np.isfinite(design)):
         return dict(base_values)  # mechanics unstable at these values: nothing to solve
-    # columns scaled to unit norm: M^6 and 1 differ by many orders of magnitude
-    norms = np.linalg.norm(design, axis=0)
-    norms[norms == 0] = 1.0
-    solution, *_ = np.linalg.lstsq(design / norms, model.recording.displacement[fit_mask], rcond=None)
-    solution = solution / norms
-    c1, c2, c0 = solution[0], solution[1], solution[-1]
-    gains = dict(zip(higher, solution[2:-1]))
-    c4, c6 = (float(gains.get(n, 0.0)) for n in MAGNETOSTRICTION_HIGHER)
+    (c1, c2, c0), *_ = np.linalg.lstsq(design, model.recording.displacement[fit_mask], rcond=None)
     center = float(np.median(m))
-    # the forcing in m = M/Ms: c6*Ms*m^6 + c4*Ms*m^4 + c2*Ms^2*m^2 + c1*Ms*m + c0 (np.roots drops leading zeros)
-    coefficients = np.array([c6 * ms, 0.0, c4 * ms, 0.0, c2 * ms ** 2, c1 * ms, c0])
-    roots = np.roots(coefficients) * ms if np.any(coefficients[:-1]) else np.array([])
+    roots = np.roots([c2, c1, c0]) if c2 != 0 else np.array([-c0 / c1])
     real = roots[np.abs(roots.imag) < 1e-9 * (np.abs(roots) + 1)].real
     M0 = float(real[np.argmin(np.abs(real - center))]) if real.size else center
-    return dict(base_values, zeta_q=float(c2), zetahat=float(c1 + 2 * c2 * M0), M0=M0, **gains)
+    return dict(base_values, zeta_q=float(c2), zetahat=float(c1 + 2 * c2 * M0), M0=M0)
 
 
 def _linear_sensor_start(model, effect, start, fit_mask):

@@ -25,11 +25,9 @@ the base model when those parameters vanish:
                                 field), ``a(T) = a*T/T_amb`` (4) (slope a/T_amb),
                                 ``beta_Ms`` (1/K): ``Ms(T) = Ms*(1 - beta_Ms*(T - T_amb))``
 ``sensor_lag``                  ``tau_m``, ``tau_x`` (s): first-order sensor lags
-``quadratic_magnetostriction``  ``zeta_q``, ``zeta_q4``, ``zeta_q6``: forcing ``zetahat*(M-M0) +
-                                zeta_q*(M-M0)^2 + Ms*(zeta_q4*(m^4-m0^4) + zeta_q6*(m^6-m0^6))``,
-                                m = M/Ms (the M^2 law of (12) about a bias M0 gives zeta_q =
-                                zetahat/(2*M0); a pure M^2 law has zetahat -> 0 with zeta_q finite;
-                                the higher even terms: a law that saturates or steepens)
+``quadratic_magnetostriction``  ``zeta_q``: forcing ``zetahat*(M-M0) + zeta_q*(M-M0)^2``
+                                (the M^2 law of (12) about a bias M0 gives zeta_q = zetahat/(2*M0);
+                                a pure M^2 law has zetahat -> 0 with zeta_q finite)
 ``rod_dynamics``                ``f2`` (Hz), ``damping2`` (damping ratio) and ``g2``: a second
                                 longitudinal rod mode (10) in parallel with the lumped one; g2
                                 is its static gain relative to the first
@@ -86,8 +84,8 @@ from ..physics.fem import FEMRod
 from ..physics.constants import PAPER_DAMPING, PAPER_STIFFNESS
 from ..physics.transducers import RodParams
 from .effects import (DRIFT_NAMES, EFFECTS, GAIN_DRIFT_NAMES, INPUT_DYNAMICS_NAMES, INPUT_MAP_NAMES,
-                      MAGNETOSTRICTION_HIGHER, MAINS_MIN_CYCLES, MAINS_NAMES, PAPER_MS, SENSOR_MAP_NAMES,
-                      applicable_effects, effect, extension_parameters, mapped_field)
+                      MAINS_MIN_CYCLES, MAINS_NAMES, PAPER_MS, SENSOR_MAP_NAMES, applicable_effects, effect,
+                      extension_parameters, mapped_field)
 from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, first_order_system, lti_response,
                       second_order_system, simulate_members, step_classes, step_lti,
                       varying_stiffness_response)
@@ -263,8 +261,10 @@ class Model:
             forcing = magnetization ** 2 - M0 ** 2
             gain = values["zeta2"]
         else:
+            deviation = magnetization - M0
             gain = values[GAIN_NAMES[transducer]]
-            forcing = magnetostriction_forcing(magnetization, values, gain)
+            # quadratic_magnetostriction: a second gain on (M - M0)^2 (kappa = zeta_q/gain)
+            forcing = deviation + (values.get("zeta_q", 0.0) / gain) * deviation ** 2 if gain else deviation
         if transducer == "fem":
             return _fem_tip_displacement(self.recording.time, forcing, gain, values, self._classes)
         delta_e, delta_e_linear = values.get("delta_e", 0.0), values.get("delta_e_linear", 0.0)
@@ -286,23 +286,6 @@ class Model:
             B = np.concatenate([B, B2])
             C = np.concatenate([C, C2])
         return lti_response(self.recording.time, forcing, A, B, C, start="steady", classes=self._classes)
-
-
-def magnetostriction_forcing(magnetization, values, gain):
-    """The magnetostriction law per unit ``gain`` (the linear gain zetahat, nu or zeta_fem), zero at the bias M0:
-    ``(M - M0) + (zeta_q*(M - M0)^2 + Ms*(zeta_q4*(m^4 - m0^4) + zeta_q6*(m^6 - m0^6)))/gain`` with m = M/Ms.
-    Today's law (13) when the three vanish, the M^2 law (12) about the bias with zeta_q alone; the higher even
-    terms bend it toward a law that saturates (opposite signs) or steepens, lambda(0) = 0 kept."""
-    deviation = magnetization - values["M0"]
-    if not gain:
-        return deviation
-    extra = values.get("zeta_q", 0.0) * deviation ** 2
-    higher = [values.get(n, 0.0) for n in MAGNETOSTRICTION_HIGHER]
-    if any(higher):
-        ms = values["Ms"]
-        m, m0 = magnetization / ms, values["M0"] / ms
-        extra = extra + ms * (higher[0] * (m ** 4 - m0 ** 4) + higher[1] * (m ** 6 - m0 ** 6))
-    return deviation + extra / gain
 
 
 def relative_stiffness_change(magnetization, values):
