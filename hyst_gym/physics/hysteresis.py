@@ -690,6 +690,7 @@ def simulate_magnetization(field, time=None, *, max_field_step: float = DEFAULT_
 __all__ = [
     "DEFAULT_MAX_FIELD_STEP", "HysteresisParams", "HysteresisBatch", "ISING", "LANGEVIN", "REVERSAL_PINNING",
     "SMALL_LOOP_EXTENSION", "reversal_weight", "simulate_shared_reversal",
-    "advance_each", "advance_one", "advance_shared", "advance_shared_small_loop", "simulate_shared_small_loop", "magnetization_slope", "simulate_batch",
+    "advance_each", "advance_one", "advance_shared", "advance_shared_small_loop", "simulate_shared_small_loop",
+    "magnetization_slope", "simulate_batch",
     "simulate_magnetization", "simulate_shared", "substep_count", "validate_hysteresis_parameters",
 ]
