@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hyst_gym.envs.posterior import CONCENTRATED, K_TASK_NODES, POSTERIOR_NODES, GridPosterior
+from hyst_gym.envs.posterior import CONCENTRATED, K_TASK_NODES, POSTERIOR_NODES, GridPosterior, grid_sizes
 
 from .agents import Agent
 
@@ -35,13 +35,7 @@ class PosteriorCalibration(Agent):
         if spec is None or not spec.calibrates:
             raise ValueError(f"PosteriorCalibration needs a calibration task, got {task_id!r}")
         k_prior = spec.k_prior
-        if nodes is None:
-            nodes = POSTERIOR_NODES if k_prior is None else K_TASK_NODES[0]
-        if k_nodes is None:
-            k_nodes = 1 if k_prior is None else K_TASK_NODES[1]
-        if isinstance(k_nodes, bool) or not isinstance(k_nodes, (int, np.integer)) or k_nodes == 2 or k_nodes < 1 \
-                or (k_nodes > 1 and k_prior is None):
-            raise ValueError(f"k_nodes must be 1 or (on a task with a k prior) an integer >= 3, got {k_nodes!r}")
+        nodes, k_nodes = grid_sizes(k_prior, nodes, k_nodes)
         self.field_agent = field_agent
         self.config = spec.env_config()
         self.k_prior = k_prior

@@ -35,6 +35,21 @@ CONCENTRATED = 0.5
 K_TASK_NODES = (24, 9)
 
 
+def grid_sizes(k_prior, nodes: int | None = None, k_nodes: int | None = None) -> tuple[int, int]:
+    """The grid's ``(nodes, k_nodes)``, checked, with the defaults filled in: :data:`POSTERIOR_NODES` T0 nodes and
+    k known without a k prior, :data:`K_TASK_NODES` with one."""
+    if nodes is None:
+        nodes = POSTERIOR_NODES if k_prior is None else K_TASK_NODES[0]
+    if k_nodes is None:
+        k_nodes = 1 if k_prior is None else K_TASK_NODES[1]
+    if isinstance(k_nodes, bool) or not isinstance(k_nodes, (int, np.integer)) or k_nodes == 2 or k_nodes < 1 \
+            or (k_nodes > 1 and k_prior is None):
+        raise ValueError(f"k_nodes must be 1 or (on a task with a k prior) an integer >= 3, got {k_nodes!r}")
+    if isinstance(nodes, bool) or not isinstance(nodes, (int, np.integer)) or nodes < 3:
+        raise ValueError(f"nodes must be an integer >= 3, got {nodes!r}")
+    return int(nodes), int(k_nodes)
+
+
 class GridPosterior:
     """The grid posterior over T0 (and k) of ``n`` sub-environments of a calibration task (module doc).
 
@@ -48,15 +63,7 @@ class GridPosterior:
                  k_nodes: int | None = None):
         from .core import IDENTIFICATION, BatchSimulator
 
-        if nodes is None:
-            nodes = POSTERIOR_NODES if k_prior is None else K_TASK_NODES[0]
-        if k_nodes is None:
-            k_nodes = 1 if k_prior is None else K_TASK_NODES[1]
-        if isinstance(k_nodes, bool) or not isinstance(k_nodes, (int, np.integer)) or k_nodes == 2 or k_nodes < 1 \
-                or (k_nodes > 1 and k_prior is None):
-            raise ValueError(f"k_nodes must be 1 or (on a task with a k prior) an integer >= 3, got {k_nodes!r}")
-        if isinstance(nodes, bool) or not isinstance(nodes, (int, np.integer)) or nodes < 3:
-            raise ValueError(f"nodes must be an integer >= 3, got {nodes!r}")
+        nodes, k_nodes = grid_sizes(k_prior, nodes, k_nodes)
         self.config = config
         self.channels = list(channels)
         self.n = int(n)
