@@ -264,6 +264,20 @@ def fill_info(info, rows, plant, view, value_true, penalty, score):
         info[12, i] = penalty[i]
 
 
+@njit(cache=True)
+def field_commands(actions, params, buffers):
+    """The field commands (A/m) of the actions: ``buffers.clipped`` the actions clipped to [-1, 1] and
+    ``buffers.command`` its first column times the field limit; ``params`` an :class:`EnvParams`,
+    ``buffers`` a :class:`StepBuffers`. Returns False (nothing written) as :func:`clip_actions` does."""
+    clipped, command = buffers.clipped, buffers.command
+    if not clip_actions(actions, params.tolerance, clipped):
+        return False
+    field_limit = PlantParams(*params.plant).field_limit
+    for i in range(command.shape[0]):
+        command[i] = clipped[i, 0] * field_limit
+    return True
+
+
 @njit(cache=True, inline="always")
 def clip_actions(actions, tolerance, clipped):
     """Copy ``actions`` (n, k) into ``clipped``, clipped to [-1, 1]; returns False (nothing
@@ -326,13 +340,9 @@ def excitation_step(actions, active, plant, view, buffers, params, estimator):
     named = EnvParams(*params)
     named_buffers, named_plant = StepBuffers(*buffers), PlantState(*plant)
     bank, bank_params, state, observer, hold = estimator
-    clipped, command = named_buffers.clipped, named_buffers.command
-    if not clip_actions(actions, named.tolerance, clipped):
+    if not field_commands(actions, named, named_buffers):
         return 1
-    field_limit = PlantParams(*named.plant).field_limit
-    for i in range(command.shape[0]):
-        command[i] = clipped[i, 0] * field_limit
-    plant_step(command, active, plant, named.plant)
+    plant_step(named_buffers.command, active, plant, named.plant)
     if estimator_step(named_plant.field, named_plant.measured, bank, bank_params, state, observer, hold):
         return 2
     theta, a_estimate = EstimatorState(*state).theta, EstimateView(*view).a_estimate
@@ -451,13 +461,9 @@ def identification_step(actions, active, plant, view, buffers, params, bank, ban
     nothing changed)."""
     named = EnvParams(*params)
     named_buffers = StepBuffers(*buffers)
-    clipped, command = named_buffers.clipped, named_buffers.command
-    if not clip_actions(actions, named.tolerance, clipped):
+    if not field_commands(actions, named, named_buffers):
         return 1
-    field_limit = PlantParams(*named.plant).field_limit
-    for i in range(command.shape[0]):
-        command[i] = clipped[i, 0] * field_limit
-    plant_step(command, active, plant, named.plant)
+    plant_step(named_buffers.command, active, plant, named.plant)
     advance_bank(bank, PlantState(*plant).field, bank_params)
     finish_step(plant, view, buffers, named.score, named.layout, bank, bank_params)
     return 0
