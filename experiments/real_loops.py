@@ -66,7 +66,7 @@ from scipy.optimize import least_squares, nnls
 from scipy.special import erf
 
 from hyst_gym.diagnose import Recording, diagnose, write_json, write_plots
-from hyst_gym.diagnose.core import loop_informed_starts
+from hyst_gym.diagnose.hypothesize import loop_informed_starts
 from hyst_gym.diagnose.fit import FitResult, Objective, global_search, local_fit
 from hyst_gym.diagnose.report import physical_params
 from hyst_gym.diagnose.model import Model, Structure, base_parameters, extension_parameters, noise_level

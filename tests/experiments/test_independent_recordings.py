@@ -323,7 +323,7 @@ def test_effect_lists_match_the_tools_vocabulary():
 # ---------------------------------------------------------------------------- independence
 
 FORBIDDEN = ("hyst_gym.physics", "hyst_gym.estimation", "hyst_gym.diagnose.kernels", "hyst_gym.diagnose.model",
-             "hyst_gym.diagnose.fit", "hyst_gym.diagnose.core", "hyst_gym.diagnose.make_recording",
+             "hyst_gym.diagnose.fit", "hyst_gym.diagnose.make_recording",
              "hyst_gym.diagnose.effects", "hyst_gym.diagnose.hypothesize", "hyst_gym.diagnose.pipeline")
 
 
