@@ -53,7 +53,8 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 from scipy.special import ndtr, ndtri
 
 from .anhysteretic import tanh_expm1
@@ -223,6 +224,26 @@ class HEMConstants(NamedTuple):
     reversible_saturation: np.ndarray  # (B,) h_s, A/m; 0: linear reversible part
     anhysteretic_weight: np.ndarray  # (B,) M_A, A/m; 0: no population of zero coercivity
     anhysteretic_inverse_scale: np.ndarray  # (B,) as inverse_scale, for b_A, 1/(A/m)
+    #: which stateless parts the bank needs: 0 the linear reversible part alone, 1 some model's reversible part
+    #: saturates, 2 some model has an anhysteretic population. The kernels run only the parts needed, so an
+    #: option left at its default costs nothing per sample (the numbers are the same: the omitted terms are 0).
+    stateless_parts: int
+
+
+#: Codes of HEMConstants.stateless_parts.
+LINEAR_REVERSIBLE_ONLY = 0
+SATURATING_REVERSIBLE_PARTS = 1
+WITH_ANHYSTERETIC_POPULATION = 2
+
+
+def stateless_parts(batch) -> int:
+    """The :attr:`HEMConstants.stateless_parts` code of a :class:`HEMBatch`: the least work that gives every
+    model's stateless parts."""
+    if np.any(batch.anhysteretic_magnetization > 0.0):
+        return WITH_ANHYSTERETIC_POPULATION
+    if np.any(batch.reversible_saturation > 0.0):
+        return SATURATING_REVERSIBLE_PARTS
+    return LINEAR_REVERSIBLE_ONLY
 
 
 class HEMState(NamedTuple):
@@ -307,7 +328,7 @@ class HEMBatch:
                             np.ascontiguousarray(weights[:, None] * self.relay_magnetization[None, :]),
                             1.0 / (factor * self.interaction_scale), self.reversible_susceptibility.copy(),
                             self.reversible_saturation.copy(), self.anhysteretic_magnetization.copy(),
-                            1.0 / (factor * self.anhysteretic_scale))
+                            1.0 / (factor * self.anhysteretic_scale), stateless_parts(self))
 
     def demagnetized(self) -> HEMState:
         """The ideally demagnetized state: every play output 0, M = 0 at H = 0."""
@@ -402,6 +423,36 @@ def _advance_node(play, coercive, weight, inverse_scale, field, kind):
     return play, weight * relay_share(play, inverse_scale, kind)
 
 
+def field_of(field, b):
+    """The field of model ``b``: ``field`` itself when one field is shared, ``field[b]`` when each model has
+    its own (compiled overload below)."""
+    return field if np.ndim(field) == 0 else field[b]
+
+
+@overload(field_of, inline="always")
+def _field_of_compiled(field, b):
+    if isinstance(field, types.Array):
+        return lambda field, b: field[b]
+    return lambda field, b: field
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _set_stateless(field, constants, kind, magnetization):
+    """``magnetization[b]`` = the stateless parts of every model at its field (:func:`field_of`). One loop per
+    case of ``constants.stateless_parts``, each vectorizing: an option at its default is not evaluated at all
+    (its weight-0 term would add exactly 0 and cost one interaction-density evaluation per model and sample)."""
+    if constants.stateless_parts == WITH_ANHYSTERETIC_POPULATION:
+        for b in range(magnetization.shape[0]):
+            magnetization[b] = stateless_magnetization(field_of(field, b), constants, b, kind)
+    elif constants.stateless_parts == SATURATING_REVERSIBLE_PARTS:
+        for b in range(magnetization.shape[0]):
+            magnetization[b] = reversible_magnetization(field_of(field, b), constants.reversible_susceptibility[b],
+                                                        constants.reversible_saturation[b])
+    else:
+        for b in range(magnetization.shape[0]):
+            magnetization[b] = constants.reversible_susceptibility[b] * field_of(field, b)
+
+
 @njit(cache=True, error_model="numpy")
 def advance_shared(state, field, constants, kind, magnetization):
     """Every model of a bank moved to one shared ``field`` (A/m); writes M (A/m) into ``magnetization``
@@ -409,8 +460,7 @@ def advance_shared(state, field, constants, kind, magnetization):
     that it compiles to SIMD code as (6)'s bank does; each model sums its nodes in node order, so a model
     gives the same numbers bit for bit alone and in any bank."""
     play = state.play
-    for b in range(play.shape[1]):
-        magnetization[b] = stateless_magnetization(field, constants, b, kind)
+    _set_stateless(field, constants, kind, magnetization)
     for i in range(play.shape[0]):
         for b in range(play.shape[1]):
             play[i, b], part = _advance_node(play[i, b], constants.coercive[i, b], constants.relay_weight[i, b],
@@ -422,8 +472,7 @@ def advance_shared(state, field, constants, kind, magnetization):
 def advance_each(state, fields, constants, kind, magnetization):
     """Every model moved to its own field ``fields[b]`` (A/m); writes M (A/m) into ``magnetization``."""
     play = state.play
-    for b in range(play.shape[1]):
-        magnetization[b] = stateless_magnetization(fields[b], constants, b, kind)
+    _set_stateless(fields, constants, kind, magnetization)
     for i in range(play.shape[0]):
         for b in range(play.shape[1]):
             play[i, b], part = _advance_node(play[i, b], constants.coercive[i, b], constants.relay_weight[i, b],
@@ -511,8 +560,9 @@ def simulate_hem(field, **params) -> np.ndarray:
 
 __all__ = [
     "ANHYSTERETIC_POPULATION", "DEFAULT_COERCIVE_NODES", "HEMBatch", "HEMConstants", "HEMParams", "HEMState",
-    "INTERACTION_DENSITIES", "LORENTZIAN", "NORMAL", "SATURATING_REVERSIBLE", "STUDENT_T2", "advance_each",
-    "advance_shared", "atan_inline", "coercive_rule", "erf_inline", "interaction_density_code", "relay_share",
+    "INTERACTION_DENSITIES", "LINEAR_REVERSIBLE_ONLY", "LORENTZIAN", "NORMAL", "SATURATING_REVERSIBLE",
+    "SATURATING_REVERSIBLE_PARTS", "STUDENT_T2", "WITH_ANHYSTERETIC_POPULATION", "advance_each", "advance_shared",
+    "atan_inline", "coercive_rule", "erf_inline", "field_of", "interaction_density_code", "relay_share",
     "reversible_magnetization", "simulate_hem", "simulate_hem_batch", "simulate_shared", "stateless_magnetization",
-    "state_with_magnetization", "validate_hem_parameters",
+    "stateless_parts", "state_with_magnetization", "validate_hem_parameters",
 ]

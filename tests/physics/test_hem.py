@@ -227,3 +227,29 @@ def test_anhysteretic_population_in_banks_and_starts():
         HEMParams(anhysteretic_magnetization=-1.0)
     with pytest.raises(ValueError, match="anhysteretic_scale"):
         HEMParams(anhysteretic_scale=0.0)
+
+
+def test_banks_mixing_the_options_equal_each_model_alone_bit_for_bit():
+    """A bank runs only the stateless parts some model needs (hem.stateless_parts): a model alone takes the
+    cheaper path of its own options, in a mixed bank the general one; both must give the same numbers."""
+    from hyst_gym.physics.hem import (LINEAR_REVERSIBLE_ONLY, SATURATING_REVERSIBLE_PARTS,
+                                      WITH_ANHYSTERETIC_POPULATION, stateless_parts)
+
+    field = 70 * np.sin(np.linspace(0, 5 * np.pi, 400)) * np.linspace(1.0, 0.2, 400)
+    for density in ("normal", "lorentzian", "student_t2"):
+        params = [HEMParams(**PARAMS, interaction_density=density),
+                  HEMParams(**PARAMS, interaction_density=density, reversible_saturation=30.0),
+                  HEMParams(**PARAMS, interaction_density=density, anhysteretic_magnetization=4e4,
+                            anhysteretic_scale=12.0)]
+        alone = [HEMBatch.from_params(p) for p in params]
+        assert [stateless_parts(b) for b in alone] == [LINEAR_REVERSIBLE_ONLY, SATURATING_REVERSIBLE_PARTS,
+                                                        WITH_ANHYSTERETIC_POPULATION]
+        for members in ((0, 1), (0, 2), (0, 1, 2)):
+            batch = HEMBatch.stack([params[j] for j in members])
+            bank = simulate_hem_batch(field, batch)
+            state, out, constants = batch.demagnetized(), np.empty(batch.size), batch.constants()
+            for column, j in enumerate(members):
+                np.testing.assert_array_equal(bank[:, column], simulate_hem_batch(field, alone[j])[:, 0])
+            for t, h in enumerate(field):
+                advance_each(state, np.full(batch.size, h), constants, batch.kind, out)
+                np.testing.assert_array_equal(out, bank[t])
