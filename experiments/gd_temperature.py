@@ -103,6 +103,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = ROOT / "data" / "real" / "gd-temperature" / "gd_loops.npz"
 RESULTS_DIR = ROOT / "experiments" / "results" / "gd_temperature"
 FIGURES_DIR = ROOT / "docs" / "figures" / "gd_temperature"
+PAGE = ROOT / "docs" / "results" / "real-loops.md"  # its gd-summary section is page_section(results.json)
 AMPLITUDES = ("major", "mid", "minor")
 T_REF_K = celsius_to_kelvin(-10.0).item()  # reference temperature of eq. (4), K
 ANHYSTERETIC = "langevin"
@@ -722,7 +723,7 @@ FAMILY_LABELS = {
     "smooth_pinning": "smooth laws + reversal-dependent pinning (rayleigh_field = k, no new parameter)",
     "hem_critical": "HEM, critical scaling: M_R ~ (1-T/Tc)^beta, pinning ~ M_R^n, chi ~ (1-T/Tc)^-gamma",
     "hem_smooth": "HEM, M_R ~ (1-T/Tc)^beta, smooth laws for chi and the pinning",
-    "hem_smooth_saturating": "HEM as above + saturating reversible part, h_s ~ M_R^n (added after the first runs)",
+    "hem_smooth_saturating": "HEM, smooth laws + saturating reversible part, h_s ~ M_R^n",
 }
 
 
@@ -783,9 +784,28 @@ def near_tc_words(study: dict, families: Sequence[str]) -> List[str]:
 
 
 def summary_table(study: dict, families: Sequence[str]) -> str:
-    """Results-page summary: per law, the worst held-out NRMSE of B (%) over the interior temperatures per
+    """The full summary (results.md): :func:`page_section`, then each left-out temperature of the chosen law and
+    the best law of the other model, the fit times' load, the protocol table of every record and the sampling
+    check."""
+    lines = [page_section(study, families, brief=False)]
+    load = study.get("load_average", float("nan"))
+    lines.append(f"\nNRMSE of B in %. Fit times: wall clock, one process on {os.cpu_count()} cores at 1-min load "
+                 f"average {load:.1f}.")
+    if study.get("protocol"):
+        lines += ["", "How the records were taken (`record_protocol`, from the raw records):", "",
+                  protocol_table(study["protocol"])]
+    if study.get("sampling_check"):
+        lines += ["", sampling_words(*study["sampling_check"])]
+    return "\n".join(lines)
+
+
+def page_section(study: dict, families: Sequence[str], brief: bool = True) -> str:
+    """Results-page section: per law, the worst held-out NRMSE of B (%) over the interior temperatures per
     amplitude (with where it occurs), the rule's score (interior mean), the near-Tc fold (+5 C) and the
-    extrapolated warmest fold, and the fit time on all temperatures; then the choice and the near-Tc words."""
+    extrapolated warmest fold, and the fit time on all temperatures; then the choice and the near-Tc words.
+    ``brief`` (the page): then the records that differ from the others and the sampling check, the full tables
+    being in results.md; else (``summary_table``) each left-out temperature of the chosen law and the best of
+    the other model."""
     rows = study["rows"]
     interior, warmest = loo_temperatures(study)
     near = interior[-1] if interior else None
@@ -817,16 +837,18 @@ def summary_table(study: dict, families: Sequence[str]) -> str:
         # beside it, the best law of the other model (domain wall or HEM), for comparison
         other_model = [f for f in scores if FAMILIES[f].model != FAMILIES[chosen].model]
         compared = [chosen] + ([min(other_model, key=scores.get)] if other_model else [])
-        lines += ["", "Each left-out temperature, the chosen law and the best of the other model:", "",
-                  per_temperature_table(study, compared)]
-    load = study.get("load_average", float("nan"))
-    lines.append(f"\nNRMSE of B in %. Fit times: wall clock, one process on {os.cpu_count()} cores at 1-min load "
-                 f"average {load:.1f}.")
-    if study.get("protocol"):
-        lines += ["", "How the records were taken (`record_protocol`, from the raw records):", "",
-                  protocol_table(study["protocol"])]
-    if study.get("sampling_check"):
-        lines += ["", sampling_words(*study["sampling_check"])]
+        if not brief:
+            lines += ["", "Each left-out temperature, the chosen law and the best of the other model:", "",
+                      per_temperature_table(study, compared)]
+    if brief:
+        load = study.get("load_average", float("nan"))
+        lines.append(f"\nFit times: wall clock, one process at 1-min load average {load:.1f}. Every temperature "
+                     "and amplitude, and how each record was taken: `experiments/results/gd_temperature/results.md`.")
+        if study.get("protocol"):
+            lines += ["", "Records that differ from the others of their amplitude (`record_protocol`):", ""]
+            lines += [f"- {d}" for d in protocol_differences(study["protocol"])] or ["- none"]
+        if study.get("sampling_check"):
+            lines += ["", sampling_words(*study["sampling_check"])]
     return "\n".join(lines)
 
 
@@ -912,6 +934,9 @@ def build_parser():
                    help="laws of the domain-wall model (6), of the homogenized energy model, or both (default)")
     p.add_argument("--from-results", default=None, metavar="JSON",
                    help="rebuild the tables from a study written before (results.json), without fitting")
+    p.add_argument("--page", action="store_true",
+                   help="with --from-results: rewrite the gd-summary section of docs/results/real-loops.md and the "
+                   "tables beside the JSON (.md) from the stored study (its protocol and sampling checks as stored)")
     p.add_argument("--no-artifacts", action="store_true",
                    help="do not write experiments/results/gd_temperature or docs/figures/gd_temperature")
     return p
@@ -928,6 +953,15 @@ def rebuild_tables(args, families) -> int:
     selection rule, the near-Tc words, the protocol check of ``--data``), printed; nothing is fitted."""
     try:
         study = json.loads(Path(args.from_results).read_text())
+        if args.page:
+            from experiments.report_markdown import update_readme
+
+            families = [f for f in families if any(r["law"] == f for r in study["rows"])]
+            update_readme(PAGE, page_section(study, families), area="gd-summary")
+            tables = Path(args.from_results).with_suffix(".md")
+            tables.write_text(markdown_table(study, families) + "\n" + summary_table(study, families) + "\n")
+            print(f"rewrote the gd-summary section of {PAGE} and {tables}")
+            return 0
         study["protocol"] = record_protocol(args.data)
         stride = study.get("settings", {}).get("stride", 6)
         chosen = min(selection_scores(study, families).items(), key=lambda item: item[1])[0]
@@ -943,6 +977,8 @@ def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     stride = 16 if args.quick else 6
+    if args.page and not args.from_results:
+        bad_input("--page rewrites the page from a stored study: give --from-results JSON")
     try:
         records = load_records(args.data, stride)
         predict_records = load_records(args.predict, stride) if args.predict else []
@@ -984,8 +1020,7 @@ def main(argv=None) -> int:
                 and not args.predict):
             from experiments.report_markdown import update_readme
 
-            update_readme(ROOT / "docs" / "results" / "real-loops.md", summary_table(study, families),
-                          area="gd-summary")
+            update_readme(PAGE, page_section(study, families), area="gd-summary")
         held = holdouts[-1] if holdouts else temps[0]  # the held-out temperature nearest Tc
         if holdouts:
             make_figure(records, study, families, held, FIGURES_DIR / f"gd_temperature{suffix}.png")

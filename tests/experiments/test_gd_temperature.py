@@ -235,3 +235,26 @@ def test_sampling_check_compares_the_records_of_the_common_length(tmp_path):
     assert set(change) == set(gd.AMPLITUDES)
     # the true law on its own (noise-free B) records: half the samples move the score by a small amount only
     assert all(0.0 <= v < 0.005 for v in change.values()), change
+
+
+def test_page_section_and_results_tables_are_the_stored_study(capsys):
+    """The gd-summary section of docs/results/real-loops.md and results.md are what the script writes from the
+    committed results.json (a study rerun without rewriting them, or a hand edit inside the markers, fails)."""
+    import json
+
+    from tests.test_docs_sections import section
+
+    stored = gd.RESULTS_DIR / "results.json"
+    study = json.loads(stored.read_text())
+    families = [f for f in gd.MODEL_FAMILIES["auto"] if any(r["law"] == f for r in study["rows"])]
+    assert section(gd.PAGE, "gd-summary") == gd.page_section(study, families).strip(), \
+        "rerun: python -m experiments.gd_temperature --from-results " \
+        "experiments/results/gd_temperature/results.json --page"
+    assert (gd.RESULTS_DIR / "results.md").read_text() == (gd.markdown_table(study, families) + "\n"
+                                                          + gd.summary_table(study, families) + "\n")
+    # the page names every record that differs, which the full table in results.md lists
+    for difference in gd.protocol_differences(study["protocol"]):
+        assert difference in section(gd.PAGE, "gd-summary")
+    with pytest.raises(SystemExit) as exit_info:
+        gd.main(["--page"])
+    assert exit_info.value.code == 2 and "--from-results" in capsys.readouterr().err
