@@ -144,6 +144,7 @@ OBSERVATION_DOCS = {
     "previous_estimate": "the agent's previous estimate of a, mapped from Theta onto [-1, 1]",
     "estimate_spread": "built-in estimator's uncertainty of a: posterior standard deviation / width(Theta), in [0, 1]",
     "temperature": "measured coil temperature (T − T_ref)/10 K (with temperature_sensor=True)",
+    "reference_next": "the dual-control task's displacement reference at the end of the coming step, y / y(Ms)",
 }
 
 

@@ -57,7 +57,8 @@ def _task(task_id, kind, family, description, difficulty, config, sensors_hidden
                     scored_from=CALIBRATE_SCORED_FROM if calibrate else 0)
 
 
-#: suite v2's tasks (:class:`~hyst_gym.envs.task_spec.TaskSpec`; kind ``calibrate`` or ``jump``)
+#: suite v2's tasks (:class:`~hyst_gym.envs.task_spec.TaskSpec`; kind ``calibrate``, ``jump`` or, measured by
+#: ``experiments/suite/dual_control.py`` and rejected, ``dual_control``)
 TASKS_V2 = (
     _task("hyst_gym/HotCalibrate-v0",
           "calibrate", "hot coil (calibrate)", "Calibrate a hot coil: report a every step while exciting; the coil "
@@ -78,6 +79,12 @@ TASKS_V2 = (
           "jump", "drift events", "Mount change: at an unknown time in 2..8 s the coil and its surroundings step by "
           "5..12 K, so a jumps by 120..290 A/m; the min-max estimator must be re-excited without overheating", 4,
           JUMP),
+    TaskSpec("hyst_gym/DualControl-v0", "v2", "dual_control", "dual control (milling)",
+             "Identify while working: track a milling stroke through an inverse-compensation controller that uses "
+             "the estimator's current a; the agent adds a probe field, which informs the estimator but costs "
+             "tracking error (a rejected candidate: every probe measured costs more tracking error than the "
+             "estimator's passive learning leaves; python -m experiments.suite.dual_control)", 0,
+             {**CALIBRATE, "output_noise": 1.0e-3}, temperature_prior="raised_cosine", rejected=True),
 )
 
 

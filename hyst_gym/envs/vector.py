@@ -22,6 +22,25 @@ from .core import ESTIMATION, EXCITATION, IDENTIFICATION, INFO_KEYS, BatchSimula
 from .single import RENDER_MODES
 
 
+def seed_sub_envs(env: VectorEnv, seed) -> None:
+    """Give the sub-envs of ``env`` (a vector env with ``num_envs`` and a :class:`~.core.BatchSimulator` ``sim``)
+    their generators for a reset with ``seed``: None (each keeps its own, a new one where it has none), an int
+    (sub-env i gets ``seed + i``, and ``env``'s own generator ``seed``, as ``SyncVectorEnv``) or a list of
+    ``num_envs`` ints/None."""
+    if seed is None:
+        seeds = [None] * env.num_envs
+    elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+        seeds = [int(seed) + i for i in range(env.num_envs)]
+        VectorEnv.reset(env, seed=int(seed))
+    else:
+        seeds = list(seed)
+        if len(seeds) != env.num_envs:
+            raise ValueError(f"reset: seed list has {len(seeds)} entries for {env.num_envs} sub-envs")
+    for i, sub_seed in enumerate(seeds):
+        if sub_seed is not None or env.sim.episode_rngs[i] is None:
+            env.sim.set_generator(i, seeding.np_random(sub_seed)[0])
+
+
 class HystVectorEnv(VectorEnv):
     """``num_envs`` transducers stepped together (base of the three modes).
 
@@ -82,18 +101,7 @@ class HystVectorEnv(VectorEnv):
     def reset(self, *, seed=None, options: dict | None = None):
         """Reset every sub-env. ``seed``: None, an int (sub-env i gets ``seed + i``) or a
         list of ``num_envs`` ints/None."""
-        if seed is None:
-            seeds = [None] * self.num_envs
-        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            seeds = [int(seed) + i for i in range(self.num_envs)]
-            super().reset(seed=int(seed))
-        else:
-            seeds = list(seed)
-            if len(seeds) != self.num_envs:
-                raise ValueError(f"reset: seed list has {len(seeds)} entries for {self.num_envs} sub-envs")
-        for i, sub_seed in enumerate(seeds):
-            if sub_seed is not None or self.sim.episode_rngs[i] is None:
-                self.sim.set_generator(i, seeding.np_random(sub_seed)[0])
+        seed_sub_envs(self, seed)
         self.sim.reset(self._all, options)
         self._autoreset[:] = False
         return self.sim.observation(), self._infos()
@@ -184,4 +192,4 @@ class IdentificationVectorEnv(HystVectorEnv):
 
 
 __all__ = ["EstimationVectorEnv", "ExcitationVectorEnv", "HystVectorEnv", "IdentificationVectorEnv",
-           "RENDER_MODES"]
+           "RENDER_MODES", "seed_sub_envs"]
