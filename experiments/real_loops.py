@@ -21,8 +21,8 @@ temperature left out: a real record whose concealed effect (warming) is known.
 Models (``--model``): ``domain_wall`` -- (6) with the Langevin or Ising curve, each alone and with the
 small-loop extension (four candidates); ``hem`` -- the homogenized energy model of ``hyst_gym.physics.hem``
 with a normal (the HEM's), Lorentzian or Student-t (2 degrees of freedom) interaction density, 16 coercive
-nodes, and the normal one with a saturating reversible part (four candidates); ``auto`` -- all of them
-(the default).
+nodes, the normal one with a saturating reversible part, and each density with the saturating reversible part
+and an anhysteretic population (seven candidates, HEM_VARIANTS); ``auto`` -- all eleven (the default).
 
 SELECTION RULE (validation loop), fixed and written here before it was run on anything. It chooses by
 how a candidate transfers across amplitudes within the material, never by how well it fits the loop it
@@ -77,6 +77,7 @@ DATA = Path(__file__).resolve().parents[1] / "data" / "real" / "jamodel-loops"
 GD_DATA = Path(__file__).resolve().parents[1] / "data" / "real" / "gd-temperature" / "gd_loops.npz"
 RESULTS = Path(__file__).resolve().parent / "results" / "diagnose"
 FIGURES = Path(__file__).resolve().parent.parent / "docs" / "figures" / "diagnose"
+PAGE = Path(__file__).resolve().parents[1] / "docs" / "results" / "real-loops.md"  # its real-loops-table section
 MATERIALS = {"MnZn_ferrite": "MnZn ferrite", "MnZn_HP_ferrite": "MnZn HP ferrite"}
 DT = 1e-3  # s per sample, quasi-static
 
@@ -746,11 +747,11 @@ def main(argv=None):
     summary["gadolinium_temperature_concealed"] = {"samples": gd.size, "stability": stability,
                                                    "explanation": report.explanation}
     print(json.dumps(summary["gadolinium_temperature_concealed"], indent=1, default=float))
+    summary["run"] = {"load_average": os.getloadavg()[0], "cores": os.cpu_count()}
     (RESULTS / "real_loops.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
     from experiments.report_markdown import update_readme
 
-    update_readme(Path(__file__).resolve().parents[1] / "docs" / "results" / "real-loops.md",
-                  loops_table(summary, os.getloadavg()[0]), area="real-loops-table")
+    update_readme(PAGE, loops_table(summary), area="real-loops-table")
     return 0
 
 
@@ -763,9 +764,9 @@ def _spread_cell(row) -> str:
     return f"{ranges}; {spread['fits']} of {spread['starts']} fits"
 
 
-def loops_table(summary, load_average: float) -> str:
+def loops_table(summary) -> str:
     """Markdown table of the amplitude hold-out, every candidate, the chosen one in bold; fit times are
-    wall-clock seconds at the stated load."""
+    wall-clock seconds at the load of the run (``summary["run"]``)."""
     lines = ["| material | candidate | fitted loop | validation loop | predicted amplitudes (A/m) | transfer score "
              "(other material) | fit time (CPU) | at a bound | equally good fits predict |",
              "|---|---|---|---|---|---|---|---|---|"]
@@ -791,8 +792,10 @@ def loops_table(summary, load_average: float) -> str:
                          f"{len(scores['variants'])} candidates fitted in "
                          f"{scores['all_candidates_fit_seconds']:.1f} s wall clock, "
                          f"{scores['all_candidates_cpu_seconds']:.1f} s of CPU time (one process).")
-    lines.append(f"\nFit times: wall clock on {os.cpu_count()} cores at 1-min load average {load_average:.1f} "
-                 "(other jobs running inflate them).")
+    run = summary.get("run", {})
+    lines.append(f"\nFit times: wall clock on {run.get('cores', '?')} cores at 1-min load average "
+                 f"{run.get('load_average', float('nan')):.1f} (other jobs running inflate them), CPU time in "
+                 "parentheses.")
     return "\n".join(lines)
 
 

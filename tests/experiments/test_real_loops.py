@@ -93,3 +93,18 @@ def test_bad_folders_are_one_line_errors(tmp_path, capsys):
     (tmp_path / "B_x.mat").write_text("not a mat file")
     (tmp_path / "H_x.mat").write_text("not a mat file")
     assert "B_x.mat: not a readable .mat file" in error_of(tmp_path)
+
+
+def test_page_table_is_the_committed_study():
+    """The real-loops-table section of docs/results/real-loops.md is what the script writes from the committed
+    real_loops.json (rerun: python -m experiments.real_loops); the chosen candidate of each material is the one
+    the selection rule picks from the stored rows."""
+    from tests.test_docs_sections import section
+
+    summary = json.loads((real_loops.RESULTS / "real_loops.json").read_text())
+    assert section(real_loops.PAGE, "real-loops-table") == real_loops.loops_table(summary).strip()
+    for stem in real_loops.MATERIALS:
+        rows = summary[stem]["holdout"]
+        chosen, how = real_loops.choose_variant(rows, summary[stem]["scores"]["transfer_scores"])
+        assert (chosen["variant"], how) == (summary[stem]["scores"]["variant"], summary[stem]["scores"]["rule"])
+        assert f"**{chosen['variant']}**" in section(real_loops.PAGE, "real-loops-table")
