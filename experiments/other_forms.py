@@ -44,6 +44,17 @@ Cases (truth -> forms -> verdicts that count as right):
                          0.4-1), a first-order lag with a delay, or a pure delay
 ``two_phase_rod``        two magnetic phases in parallel (different a, Ms, k, c): the       {unexplained, ambiguous}
                          mixture drives both channels, or only phase 1 is magnetostrictive
+``sensor_resonance``     a sensor (or its amplifier) with a second-order resonance at 1-3    {sensor_lag}
+                         kHz, damping ratio 0.05-0.4, on one channel or both (not a lag)
+``pinning_temperature``  coil heating (two-time-constant network) that makes the pinning    {thermal_drift}
+                         k collapse toward a near Curie point (power law or exponential),
+                         Ms(T) Bloch-like with the same Tc
+``other_anhysteretic``   a Brillouin curve (J 2-20), a mixture of two Langevin curves or a   {anhysteretic_shape}
+                         sharper knee x/(1+|x|^p)^(1/p), blended with the material's curve
+                         at the same slope at 0
+``rod_on_mount``         the rod standing on a compliant mass-spring-damper mount (two      {rod_dynamics}
+                         modes, the same static gain); the sensor referenced to the ground
+                         or to the mount
 =======================  ============================================================  ==========================
 
 Numerics (other than the fitter's and other than independent_recordings'): the recorded field is
@@ -78,7 +89,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from scipy import signal
+from scipy import linalg, signal
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 from scipy.special import erf
@@ -134,6 +145,14 @@ CASES = {c.name: c for c in (
              "true field a filtered or delayed copy of the recorded one (amplifier bandwidth, coil L/R)"),
     CaseSpec("two_phase_rod", frozenset({"unexplained", "ambiguous"}), CHANNEL_SETS, ("mixture", "split_roles"),
              "two magnetic phases in parallel (fits no slot)"),
+    CaseSpec("sensor_resonance", frozenset({"sensor_lag"}), CHANNEL_SETS, ("resonant_sensor",),
+             "a sensor (or its amplifier) with a second-order resonance at 1-3 kHz"),
+    CaseSpec("pinning_temperature", frozenset({"thermal_drift"}), CHANNEL_SETS, ("power_law_k", "exponential_k"),
+             "coil heating that moves the pinning k (collapsing toward Tc) and Ms (Bloch law, same Tc)"),
+    CaseSpec("other_anhysteretic", frozenset({"anhysteretic_shape"}), CHANNEL_SETS,
+             ("brillouin", "two_langevin", "sharp_knee"), "an anhysteretic curve of another shape, same slope at 0"),
+    CaseSpec("rod_on_mount", frozenset({"rod_dynamics"}), ("displacement", "both"),
+             ("ground_referenced", "mount_referenced"), "the rod on a compliant mount (a mass-spring-damper base)"),
 )}
 ALL_CASES = tuple(CASES)
 
@@ -157,18 +176,107 @@ def monotone_runs(field) -> list[tuple[int, int, float]]:
     return runs
 
 
-def magnetization(time, field, material: ir.Material, *, a_scale=None, ms_scale=None,
-                  method: str = "LSODA") -> np.ndarray:
+def brillouin(x: float, j: float) -> tuple[float, float]:
+    """Brillouin function B_J(x) and its slope: B_J = p coth(p x) - q coth(q x), p = (2J+1)/(2J),
+    q = 1/(2J); written as p L(p x) - q L(q x) with L(u) = coth(u) - 1/u (the 1/x terms cancel),
+    which stays accurate near 0 and far out. J = 1/2 is tanh, J -> infinity the Langevin function."""
+    p, q = (2.0 * j + 1.0) / (2.0 * j), 1.0 / (2.0 * j)
+    lp, lp_slope = ir.anhysteretic(p * x, "langevin")
+    lq, lq_slope = ir.anhysteretic(q * x, "langevin")
+    # far out both slopes are 1/x^2 (to rounding) and cancel: the true slope, ~exp(-x/J), is >= 0
+    return p * lp - q * lq, max(p * p * lp_slope - q * q * lq_slope, 0.0)
+
+
+@dataclass(frozen=True)
+class AnhystereticCurve:
+    """Man/Ms as a function of x = He/a, another shape than the material's ``base`` curve ("ising":
+    tanh, slope 1 at 0; "langevin": slope 1/3), blended with it: (1 - blend)*base + blend*other.
+    The other shape is rescaled in x to the base's slope at 0, so the blend keeps the initial
+    susceptibility, rho and the safety margins of the draw (each shape is steepest at 0):
+
+    brillouin   B_J(x) with J = ``shape`` (2-20): between tanh (J = 1/2) and Langevin;
+    two_langevin  ``shape``-weighted mixture of two Langevin curves, widths 1 and ``width_ratio``;
+    sharp_knee  x/(1 + |x|^p)^(1/p), p = ``shape`` (3-6): linear, then a sharper knee than tanh.
+    """
+
+    base: str
+    form: str
+    blend: float
+    shape: float
+    width_ratio: float = 1.0
+
+    def other(self, x: float) -> tuple[float, float]:
+        """(Man/Ms, slope in x) of the other shape, rescaled to the base's slope at 0."""
+        s0 = 1.0 if self.base == "ising" else 1.0 / 3.0
+        if self.form == "brillouin":
+            g = s0 * 3.0 * self.shape / (self.shape + 1.0)  # B_J'(0) = (J+1)/(3J)
+            value, slope = brillouin(g * x, self.shape)
+        elif self.form == "two_langevin":
+            w, r = self.shape, self.width_ratio
+            g = s0 * 3.0 / (w + (1.0 - w) / r)  # L'(0) = 1/3
+            v1, d1 = ir.anhysteretic(g * x, "langevin")
+            v2, d2 = ir.anhysteretic(g * x / r, "langevin")
+            value, slope = w * v1 + (1.0 - w) * v2, w * d1 + (1.0 - w) * d2 / r
+        elif self.form == "sharp_knee":
+            u = abs(s0 * x) ** self.shape
+            g, value = s0, s0 * x * (1.0 + u) ** (-1.0 / self.shape)
+            slope = (1.0 + u) ** (-1.0 - 1.0 / self.shape)
+            return value, g * slope
+        else:
+            raise ValueError(f"unknown anhysteretic form {self.form!r}")
+        return value, g * slope
+
+    def __call__(self, x: float) -> tuple[float, float]:
+        base_value, base_slope = ir.anhysteretic(x, self.base)
+        value, slope = self.other(x)
+        b = self.blend
+        return (1.0 - b) * base_value + b * value, (1.0 - b) * base_slope + b * slope
+
+    def slope(self, H: float, M: float, delta: float, a: float, k: float, alpha: float, Ms: float, c: float,
+              curve: str = "", chi_rev: float = 0.0) -> float:
+        """dM/dH of eq. (6) with this anhysteretic curve (``curve`` is ignored; ``chi_rev`` must be 0):
+        the reversible part c*Man' and the irreversible part (Man - M)/(delta*k - alphahat*(Man - M)),
+        the latter only while M lags Man in the direction of travel, all over 1 - alpha*c*Man'."""
+        if chi_rev:
+            raise ValueError("AnhystereticCurve.slope has no reversible bowing (chi_rev must be 0)")
+        value, shape_slope = self(x=(H + alpha * M) / a)
+        lag = Ms * value - M
+        reversible = c * Ms * shape_slope / a
+        wall = (1.0 - c) * k * delta - alpha * lag  # (1 - c) times the pinning denominator
+        pinned = (1.0 - c) * lag / wall if lag * delta > 0.0 and wall * delta > 0.0 else 0.0
+        return (pinned + reversible) / (1.0 - alpha * reversible)
+
+
+def _initial_magnetization(H0: float, mat: ir.Material, slope) -> float:
+    """M (A/m) on the initial curve from the demagnetized state (M = 0 at H = 0) to ``H0``, for ``slope``."""
+    if H0 == 0.0:
+        return 0.0
+    delta = 1.0 if H0 > 0 else -1.0
+    sol = solve_ivp(lambda h, y: [slope(h, y[0], delta, mat.a, mat.k, mat.alpha, mat.Ms, mat.c)], (0.0, H0), [0.0],
+                    method="LSODA", rtol=RTOL, atol=ATOL * mat.Ms, max_step=min(abs(H0), mat.k, mat.a) / 20)
+    return float(sol.y[0, -1])
+
+
+def magnetization(time, field, material: ir.Material, *, a_scale=None, ms_scale=None, k_scale=None,
+                  curve: AnhystereticCurve | None = None, method: str = "LSODA") -> np.ndarray:
     """M (A/m) at the samples of ``field`` (A/m), linearly interpolated between them: eq. (6)
     integrated in the field, one ``solve_ivp`` per monotone run, from the initial curve at
-    ``field[0]``. ``a_scale``/``ms_scale`` (arrays on ``time``): a(t)/a and Ms(t)/Ms, read at the
-    time of the run's linear interpolant where the field passes H."""
+    ``field[0]``. ``a_scale``/``ms_scale``/``k_scale`` (arrays on ``time``): a(t)/a, Ms(t)/Ms and
+    k(t)/k, read at the time of the run's linear interpolant where the field passes H;
+    ``curve``: another anhysteretic curve than the material's (its own slope function)."""
     field = np.asarray(field, dtype=float)
     mat = material
     out = np.empty(field.size)
-    out[0] = ir.initial_magnetization(float(field[0]), mat)
-    slope = ir.hysteresis_slope
+    slope = ir.hysteresis_slope if curve is None else curve.slope
+    out[0] = ir.initial_magnetization(float(field[0]), mat) if curve is None else \
+        _initial_magnetization(float(field[0]), mat, slope)
     index = np.arange(field.size, dtype=float)
+    if a_scale is not None or k_scale is not None:
+        ones = np.ones(field.size)
+        a_scale = ones if a_scale is None else a_scale
+        ms_scale = ones if ms_scale is None else ms_scale
+    # the pinning sets the field scale of the loop's bends: the step follows its smallest value
+    least_k = mat.k * (1.0 if k_scale is None else float(np.min(k_scale)))
     for first, last, delta in monotone_runs(field):
         H = field[first:last + 1]
         if last == first or H[-1] == H[0]:
@@ -185,13 +293,14 @@ def magnetization(time, field, material: ir.Material, *, a_scale=None, ms_scale=
                 s = np.interp(h, H_sorted, at)  # fractional sample index where the field is h
                 a = mat.a * float(np.interp(s, index, a_scale))
                 Ms = mat.Ms * float(np.interp(s, index, ms_scale))
-                return [slope(h, y[0], delta, a, mat.k, mat.alpha, Ms, mat.c, mat.curve, mat.chi_rev)]
+                k = mat.k if k_scale is None else mat.k * float(np.interp(s, index, k_scale))
+                return [slope(h, y[0], delta, a, k, mat.alpha, Ms, mat.c, mat.curve, mat.chi_rev)]
 
         # evaluation points: the run's distinct field values (a flat stretch shares one)
         values, inverse = np.unique(H, return_inverse=True)
         t_eval = values if delta > 0 else values[::-1]
         sol = solve_ivp(rhs, (float(H[0]), float(H[-1])), [out[first]], method=method, t_eval=t_eval,
-                        rtol=RTOL, atol=ATOL * mat.Ms, max_step=max(min(mat.k, mat.a) / 4, 1e-9))
+                        rtol=RTOL, atol=ATOL * mat.Ms, max_step=max(min(least_k, mat.a) / 4, 1e-9))
         if not sol.success:  # pragma: no cover
             raise RuntimeError(f"magnetization solve failed: {sol.message}")
         y = sol.y[0] if delta > 0 else sol.y[0][::-1]
@@ -386,6 +495,67 @@ def material_scales(theta, law: dict) -> tuple[np.ndarray, np.ndarray]:
     return np.maximum(a_scale, 0.05), np.maximum(ms_scale, 0.05)
 
 
+def resonant_sensor(time, values, frequency: float, damping: float) -> np.ndarray:
+    """A sensor (or its amplifier) with a second-order resonance: y'' + 2*damping*w0*y' + w0^2*y = w0^2*u,
+    w0 = 2*pi*``frequency`` (Hz): unit static gain, a resonant peak 1/(2*damping*sqrt(1 - damping^2)) at
+    w0*sqrt(1 - 2*damping^2) when damping < 1/sqrt(2); started settled. Numerics as the mechanics': the
+    input is held ``linear`` on 16 Newmark substeps per sample."""
+    dt = float(time[1] - time[0])
+    w0 = 2.0 * math.pi * frequency
+    return newmark(np.asarray(values, dtype=float), dt, w0 * w0, 2.0 * damping * w0, w0 * w0, 1.0, substeps=16)
+
+
+def mount_transfer(mech: ir.Mechanics, p: dict, form: str) -> tuple[np.ndarray, np.ndarray]:
+    """(numerator, denominator) of the displacement over zetahat*M, s-polynomials, for the rod (stiffness
+    khat, damping chat per unit tip mass) standing on a compliant mount of mass ``mass_ratio`` tip masses,
+    stiffness ``compliance``^-1 * khat and damping ratio ``mount_damping``; the magnetostrictive force acts
+    between the mount and the tip, so the static response is the lumped one, 1/khat.
+
+    tip:   x_t'' = -khat*(x_t - x_b) - chat*(x_t' - x_b') + zetahat*M
+    mount: mu*x_b'' = khat*(x_t - x_b) + chat*(x_t' - x_b') - zetahat*M - km*x_b - cm*x_b'
+    With A = s^2 + chat*s + khat, B = chat*s + khat, D = mu*s^2 + (chat + cm)*s + khat + km and
+    Delta = A*D - B^2: x_t/(zetahat*M) = (D - B)/Delta (``ground_referenced``, a sensor fixed to the
+    ground), (x_t - x_b)/(zetahat*M) = (A + D - 2B)/Delta (``mount_referenced``, a sensor on the mount)."""
+    mu = p["mass_ratio"]
+    km = mech.khat / p["compliance"]
+    cm = 2.0 * p["mount_damping"] * math.sqrt(km * mu)
+    A = np.array([1.0, mech.chat, mech.khat])
+    B = np.array([0.0, mech.chat, mech.khat])
+    D = np.array([mu, mech.chat + cm, mech.khat + km])
+    den = np.polysub(np.polymul(A, D), np.polymul(B, B))
+    num = D - B if form == "ground_referenced" else A + D - 2.0 * B
+    return np.trim_zeros(num, "f"), np.trim_zeros(den, "f")
+
+
+def mount_modes(mech: ir.Mechanics, p: dict) -> np.ndarray:
+    """Undamped natural frequencies (Hz) of the rod on its mount, ascending."""
+    mu, km = p["mass_ratio"], mech.khat / p["compliance"]
+    stiffness = np.array([[mech.khat, -mech.khat], [-mech.khat, mech.khat + km]])
+    w2 = linalg.eigh(stiffness, np.diag([1.0, mu]), eigvals_only=True)
+    return np.sqrt(w2) / (2.0 * math.pi)
+
+
+def pinning_scales(theta, p: dict, form: str, mat: ir.Material) -> tuple[np.ndarray, np.ndarray, dict]:
+    """(k(T)/k, Ms(T)/Ms, notes) at the temperature rise ``theta`` (K) above T_amb, for a ferromagnet whose
+    Curie point ``curie`` (K) is near: Ms(T) ~ (1 - (T/Tc)^1.5) (Bloch), the pinning collapsing toward Tc,
+    k ~ ((Tc - T)/(Tc - T_amb))^``k_power`` (``power_law_k``) or exp(-(T - T_amb)/``k_temperature``)
+    (``exponential_k``). The pinning is floored where eq. (6)'s irreversible denominator would approach
+    0 (alpha > 0); ``notes`` says whether that floor was reached."""
+    T0, tc = ir.T_AMBIENT, p["curie"]
+    T = np.minimum(T0 + theta, tc - 5.0)
+    ms_scale = np.maximum((1.0 - (T / tc) ** 1.5) / (1.0 - (T0 / tc) ** 1.5), 0.05)
+    if form == "power_law_k":
+        k_scale = ((tc - T) / (tc - T0)) ** p["k_power"]
+    else:
+        k_scale = np.exp(-(T - T0) / p["k_temperature"])
+    # (1 - c)*k - 2*alpha*Ms(T) > 0.2*(1 - c)*k keeps the pinning term's denominator away from 0
+    floor = 0.05 if mat.alpha <= 0 else 2.5 * mat.alpha * mat.Ms * ms_scale / ((1.0 - mat.c) * mat.k)
+    floored = bool(np.any(k_scale < floor))
+    notes = {"temperature_capped": bool(np.any(T0 + theta > tc - 5.0)), "k_floored": floored,
+             "k_scale_min": float(np.min(np.maximum(k_scale, floor))), "ms_scale_min": float(np.min(ms_scale))}
+    return np.maximum(k_scale, floor), ms_scale, notes
+
+
 # ---------------------------------------------------------------------------- draws
 
 @dataclass(frozen=True)
@@ -505,8 +675,8 @@ def setup(case: str, seed: int, n_samples: int | None = None) -> Setup:
              "phases": rng.uniform(0, 2 * np.pi, 3).tolist(),
              "channel": _choice(rng, ("magnetization", "displacement", "both"))}
         knob, knob_max = "amplitude", 0.2
-    elif case in ("magnetostriction_law", "continuum_rod"):
-        p, knob, knob_max = _mechanics_draw(rng, case)
+    elif case in _DRAWS:
+        p, knob, knob_max = _DRAWS[case](rng, form, duration)
     elif case == "input_dynamics":
         p, knob, knob_max = _input_dynamics_draw(rng, form, base.conditions.sample_rate), "scale", 20.0
     elif case == "two_phase_rod":
@@ -527,6 +697,47 @@ def _mechanics_draw(rng, case: str) -> tuple[dict, str, float]:
                 "blend", 1.0)
     return ({"mass_ratio": rng.uniform(0.5, 3.0), "zeta1": rng.uniform(0.01, 0.05),
              "rayleigh_stiff_share": rng.uniform(0.3, 0.8)}, "mass_ratio", 8.0)
+
+
+def _sensor_resonance_draw(rng, form: str, duration: float) -> tuple[dict, str, float]:
+    """A resonance at 1-3 kHz with damping ratio 0.05-0.4 on each sensor (drawn apart), on one channel or
+    both; ``scale`` (default 1, up to 4) divides the resonant frequencies (a slower sensor)."""
+    return ({"frequency_magnetization": rng.uniform(1e3, 3e3), "frequency_displacement": rng.uniform(1e3, 3e3),
+             "damping_magnetization": rng.uniform(0.05, 0.4), "damping_displacement": rng.uniform(0.05, 0.4),
+             "channel": _choice(rng, ("magnetization", "displacement", "both")), "scale": 1.0}, "scale", 4.0)
+
+
+def _pinning_temperature_draw(rng, form: str, duration: float) -> tuple[dict, str, float]:
+    """Heating as in ``heating_other_law`` (a two-time-constant network, |H| or H^2), a Curie point
+    60-200 K above T_amb, the pinning's exponent 1-3 or its temperature scale 15-60 K; ``rise`` (K,
+    15-40, up to 120) sets the size."""
+    network = _choice(rng, ("series", "parallel"))
+    return ({"rise": rng.uniform(15.0, 40.0), "drive": _choice(rng, ("abs", "square")), "network": network,
+             "tau1": rng.uniform(0.05, 0.3) * duration, "tau2": rng.uniform(0.5, 3.0) * duration,
+             "fast_share": rng.uniform(0.3, 0.7), "curie": ir.T_AMBIENT + rng.uniform(60.0, 200.0),
+             "k_power": rng.uniform(1.0, 3.0), "k_temperature": rng.uniform(15.0, 60.0)}, "rise", 120.0)
+
+
+def _other_anhysteretic_draw(rng, form: str, duration: float) -> tuple[dict, str, float]:
+    """The other curve's shape (Brillouin J 2-20 log-uniform, a Langevin mixture with share 0.3-0.7 and width ratio
+    3-8, or a knee exponent 3-6) and its ``blend`` with the material's curve (0.4-0.8, up to 1)."""
+    shape = {"brillouin": ir._log_uniform(rng, 2.0, 20.0), "two_langevin": rng.uniform(0.3, 0.7),
+             "sharp_knee": rng.uniform(3.0, 6.0)}[form]
+    return {"blend": rng.uniform(0.4, 0.8), "shape": shape, "width_ratio": rng.uniform(3.0, 8.0)}, "blend", 1.0
+
+
+def _rod_on_mount_draw(rng, form: str, duration: float) -> tuple[dict, str, float]:
+    """A mount of 0.5-5 tip masses whose compliance is 0.3-3 times the rod's (``compliance``, up to 10)
+    with damping ratio 0.02-0.15."""
+    return ({"mass_ratio": rng.uniform(0.5, 5.0), "compliance": ir._log_uniform(rng, 0.3, 3.0),
+             "mount_damping": rng.uniform(0.02, 0.15)}, "compliance", 10.0)
+
+
+#: Draws (rng, form, duration) -> (parameters, size knob, its cap) of the cases drawn by a helper.
+_DRAWS = {"magnetostriction_law": lambda rng, form, duration: _mechanics_draw(rng, "magnetostriction_law"),
+          "continuum_rod": lambda rng, form, duration: _mechanics_draw(rng, "continuum_rod"),
+          "sensor_resonance": _sensor_resonance_draw, "pinning_temperature": _pinning_temperature_draw,
+          "other_anhysteretic": _other_anhysteretic_draw, "rod_on_mount": _rod_on_mount_draw}
 
 
 def _drift_draw(rng, case: str, form: str, duration: float) -> dict:
@@ -633,6 +844,34 @@ def _stiffness(st: Setup, M):
     return (1.0 + p["beta"] * g) / (1.0 + p["beta"] * g_ref)
 
 
+def _material_response(st: Setup, field) -> np.ndarray:
+    """M (A/m) of the case's material (its heating, its pinning's temperature, its anhysteretic curve)."""
+    case, p, mat, method = st.case, st.params, st.base.material, st.numerics["method"]
+    if case == "heating_other_law":
+        theta = thermal_rise(st.time, field, p, p["rise"])
+        a_scale, ms_scale = material_scales(theta, p)
+        return magnetization(st.time, field, mat, a_scale=a_scale, ms_scale=ms_scale, method=method)
+    if case == "pinning_temperature" and p["rise"] > 0.0:
+        k_scale, ms_scale, _ = pinning_scales(thermal_rise(st.time, field, p, p["rise"]), p, st.form, mat)
+        return magnetization(st.time, field, mat, ms_scale=ms_scale, k_scale=k_scale, method=method)
+    if case == "other_anhysteretic" and p["blend"] > 0.0:
+        curve = AnhystereticCurve(base=mat.curve, form=st.form, blend=p["blend"], shape=p["shape"],
+                                  width_ratio=p["width_ratio"])
+        return magnetization(st.time, field, mat, curve=curve, method=method)
+    return magnetization(st.time, field, mat, method=method)
+
+
+def _on_mount(st: Setup, M) -> np.ndarray:
+    """Displacement (m) of the rod on its mount (:func:`mount_transfer`), by scipy's ``lsim`` (the input
+    linear between samples) from the steady state of the first sample."""
+    num, den = mount_transfer(st.base.mechanics, st.params, st.form)
+    system = signal.StateSpace(*signal.tf2ss(num, den))
+    forcing = st.base.mechanics.zetahat * np.asarray(M, dtype=float)
+    start = -np.linalg.solve(system.A, system.B[:, 0] * forcing[0])
+    _, x, _ = signal.lsim(system, forcing, st.time - st.time[0], X0=start)
+    return np.asarray(x, dtype=float)
+
+
 def forward(st: Setup) -> dict:
     """Noise-free recorded channels {"magnetization", "displacement"} (A/m, m) on the sample grid."""
     case, p, mat, num = st.case, st.params, st.base.material, st.numerics
@@ -641,12 +880,7 @@ def forward(st: Setup) -> dict:
         field = amplifier(field, st.form, p["overdrive"], p["asymmetry"])
     if case == "input_dynamics":
         field = input_filter(st.time, field, st.form, p)
-    if case == "heating_other_law":
-        theta = thermal_rise(st.time, field, p, p["rise"])
-        a_scale, ms_scale = material_scales(theta, p)
-        M = magnetization(st.time, field, mat, a_scale=a_scale, ms_scale=ms_scale, method=num["method"])
-    else:
-        M = magnetization(st.time, field, mat, method=num["method"])
+    M = _material_response(st, field)
     M_drive = M
     if case == "two_phase_rod":
         M2 = magnetization(st.time, field, second_material(mat, p), method=num["method"])
@@ -659,11 +893,22 @@ def forward(st: Setup) -> dict:
         x = _rod(st, M_drive)
     elif case == "magnetostriction_law":
         x = _lumped(st, _even_law_drive(st, M_drive))
+    elif case == "rod_on_mount" and p["compliance"] > 0.0:
+        x = _on_mount(st, M_drive)
     else:
         x = _lumped(st, M_drive)
-    out = {"magnetization": M, "displacement": x}
+    return _sensor_terms(st, {"magnetization": M, "displacement": x})
+
+
+def _sensor_terms(st: Setup, out: dict) -> dict:
+    """The recorded channels: the true ``out`` through the case's sensors (maps, dynamics, drifts, pickup)."""
+    case, p = st.case, st.params
+    x = out["displacement"]
     if case == "sensor_nonlinearity":
         out["displacement"] = sensor_map(x, st.form, p["gain"], p["offset"])
+    elif case == "sensor_resonance" and p["scale"] > 0.0:
+        for ch in _acted_channels(st, BOTH):
+            out[ch] = resonant_sensor(st.time, out[ch], p[f"frequency_{ch}"] / p["scale"], p[f"damping_{ch}"])
     elif case in ("sensor_offset_drift", "mains_pickup"):
         for ch in _acted_channels(st, BOTH):
             span = float(np.ptp(out[ch]))
@@ -695,9 +940,9 @@ def _walk(st: Setup, channel: str) -> np.ndarray | None:
 def _acted_channels(st: Setup, wanted) -> tuple:
     """The recorded channels the effect acts on."""
     case = st.case
-    if case in ("delta_e_shifted", "sensor_nonlinearity", "continuum_rod", "magnetostriction_law"):
+    if case in ("delta_e_shifted", "sensor_nonlinearity", "continuum_rod", "magnetostriction_law", "rod_on_mount"):
         acted = ("displacement",)
-    elif case in ("sensor_offset_drift", "sensor_gain_drift", "mains_pickup"):
+    elif case in ("sensor_offset_drift", "sensor_gain_drift", "mains_pickup", "sensor_resonance"):
         ch = st.params["channel"]
         acted = BOTH if ch == "both" else (ch,)
     elif case == "two_phase_rod" and st.form == "split_roles":
@@ -786,6 +1031,12 @@ def simulate(case: str, seed: int, channels: str = "both", *, n_samples: int | N
         truth["mode_frequencies_hz"] = (f1 * roots / roots[0]).tolist()
     if case == "two_phase_rod":
         truth["second_material"] = second_material(st.base.material, st.params).as_dict()
+    if case == "rod_on_mount":
+        truth["mode_frequencies_hz"] = mount_modes(st.base.mechanics, st.params).tolist()
+    if case == "pinning_temperature":  # a temperature capped below Tc or a floored pinning is said here
+        theta = thermal_rise(st.time, st.field, st.params, st.params["rise"])
+        truth["pinning_notes"] = pinning_scales(theta, st.params, st.form, st.base.material)[2]
+        truth["max_temperature_rise"] = float(np.max(theta))
     return Simulation(time=st.time, field=st.field, clean={c: outputs[c] for c in wanted},
                       reference={c: reference[c] for c in wanted}, truth=ir._jsonable(truth))
 

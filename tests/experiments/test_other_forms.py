@@ -18,7 +18,8 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 SHORT = 600
 #: Cases whose effect has a size knob that switches it off at 0.
 SIZED = ("delta_e_shifted", "saturating_amplifier", "sensor_nonlinearity", "heating_other_law",
-         "sensor_offset_drift", "sensor_gain_drift", "mains_pickup", "two_phase_rod", "magnetostriction_law")
+         "sensor_offset_drift", "sensor_gain_drift", "mains_pickup", "two_phase_rod", "magnetostriction_law",
+         "sensor_resonance", "pinning_temperature", "other_anhysteretic", "rod_on_mount")
 
 
 def test_imports_nothing_of_the_fitter():
@@ -204,3 +205,152 @@ def test_gain_drift_starts_at_zero_and_multiplies_the_channel(form):
         np.testing.assert_allclose(drifted[channel], plain[channel] * (1.0 + change), rtol=1e-12)
         assert drifted[channel][0] == pytest.approx(plain[channel][0], rel=1e-12)
         assert 0.01 < np.max(np.abs(change)) < 0.5  # a drift of a few %, not a broken sensor
+
+
+# ---------------------------------------------------------------------------- the blind cases' physics
+
+@pytest.mark.parametrize("frequency, damping", [(1000.0, 0.05), (2500.0, 0.2)])
+def test_resonant_sensor_peaks_at_its_resonance_and_keeps_the_static_gain(frequency, damping):
+    fs = 40e3
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(2 ** 15)
+    y = of.resonant_sensor(np.arange(u.size) / fs, u, frequency, damping)
+    # the empirical transfer |Puy/Puu| (Welch averages) peaks where the second-order section does
+    freqs, puu = signal.welch(u, fs, nperseg=4096)
+    _, puy = signal.csd(u, y, fs, nperseg=4096)
+    gain = np.abs(puy / puu)
+    peak = frequency * math.sqrt(1.0 - 2.0 * damping ** 2)
+    # within two bins or 2 % (a broad peak's top is flat)
+    assert freqs[np.argmax(gain)] == pytest.approx(peak, abs=max(2 * fs / 4096, 0.02 * peak))
+    assert np.max(gain) == pytest.approx(1.0 / (2 * damping * math.sqrt(1 - damping ** 2)), rel=0.25)
+    assert gain[1] == pytest.approx(1.0, abs=0.05)  # unit gain well below the resonance
+    constant = of.resonant_sensor(np.arange(200) / fs, np.full(200, 3.0), frequency, damping)
+    np.testing.assert_allclose(constant, 3.0, rtol=1e-12)  # started settled
+
+
+def test_sensor_resonance_case_rings_in_the_recorded_channel():
+    st = of.setup("sensor_resonance", 3, 2000)
+    st = replace(st, params=dict(st.params, channel="displacement"))
+    ringing, plain = of.forward(st), of.forward(st.sized(0.0))
+    np.testing.assert_array_equal(ringing["magnetization"], plain["magnetization"])  # the other sensor is clean
+    difference = ringing["displacement"] - plain["displacement"]
+    fs = st.base.conditions.sample_rate
+    freqs = np.fft.rfftfreq(difference.size, 1 / fs)
+    spectrum = np.abs(np.fft.rfft(difference * np.hanning(difference.size)))
+    # the error the resonant sensor adds is largest near its resonance (above the slow drive)
+    f0 = st.params["frequency_displacement"]
+    assert abs(freqs[np.argmax(spectrum * (freqs > 200))] - f0) < 0.35 * f0
+
+
+def test_pinning_collapses_toward_the_curie_point():
+    theta = np.linspace(0.0, 150.0, 301)
+    material = ir.Material(a=7000.0, k=2000.0, alpha=-0.05, Ms=8e5, c=0.2)
+    for form in ("power_law_k", "exponential_k"):
+        p = {"curie": ir.T_AMBIENT + 100.0, "k_power": 2.0, "k_temperature": 20.0}
+        k_scale, ms_scale, notes = of.pinning_scales(theta, p, form, material)
+        assert k_scale[0] == pytest.approx(1.0) and ms_scale[0] == pytest.approx(1.0)
+        assert np.all(np.diff(k_scale) <= 0) and np.all(np.diff(ms_scale) <= 0)
+        assert k_scale[theta == 80.0][0] < 0.1  # 20 K below Tc the pinning has nearly gone
+        assert notes["temperature_capped"]  # theta reaches past Tc - 5 K: said, not hidden
+    # alpha > 0: the pinning is floored where eq. (6)'s irreversible denominator would reach 0, and it says so
+    positive = replace(material, alpha=0.05)
+    k_scale, ms_scale, notes = of.pinning_scales(theta, p, "power_law_k", positive)
+    assert notes["k_floored"] and np.all((1 - positive.c) * positive.k * k_scale
+                                         > 2 * positive.alpha * positive.Ms * ms_scale)
+
+
+def test_pinning_scale_is_the_same_as_a_material_with_that_pinning():
+    """A constant k(t)/k = s gives the loop of the material with pinning s*k: an independent check of the
+    time-varying path; and a smaller pinning gives a narrower loop (less hysteresis loss)."""
+    time = np.linspace(0.0, 1.0, 1201)
+    field = 3e4 * np.sin(2 * np.pi * 3 * time)
+    material = ir.Material(a=7000.0, k=3000.0, alpha=-0.02, Ms=8e5, c=0.2)
+    scaled = of.magnetization(time, field, material, k_scale=np.full(time.size, 0.4))
+    direct = of.magnetization(time, field, replace(material, k=0.4 * material.k))
+    np.testing.assert_allclose(scaled, direct, rtol=0, atol=1e-6 * np.ptp(direct))
+    full = of.magnetization(time, field, material)
+    last = time > 2.0 / 3.0  # the last cycle
+    def loss(m):
+        return abs(np.trapezoid(m[last], field[last]))
+    assert loss(scaled) < 0.8 * loss(full)
+
+
+@pytest.mark.parametrize("form, shape", [("brillouin", 5.0), ("two_langevin", 0.5), ("sharp_knee", 4.0)])
+@pytest.mark.parametrize("base", ["ising", "langevin"])
+def test_other_anhysteretic_curves_are_odd_monotone_saturating_with_the_base_slope(form, shape, base):
+    curve = of.AnhystereticCurve(base=base, form=form, blend=1.0, shape=shape, width_ratio=5.0)
+    x = np.linspace(-400.0, 400.0, 16001)
+    values = np.array([curve(v)[0] for v in x])
+    slopes = np.array([curve(v)[1] for v in x])
+    np.testing.assert_allclose(values, -values[::-1], rtol=0, atol=1e-12)  # odd (to rounding of the grid)
+    inner = np.abs(x[1:]) < 10.0  # further out the curve is flat to double precision
+    assert np.all(np.diff(values) >= -1e-15) and np.all(np.diff(values)[inner] > 0) and np.all(slopes >= 0)
+    assert values[-1] == pytest.approx(1.0, abs=0.05) and np.max(np.abs(values)) <= 1.0 + 1e-12  # saturates at Ms
+    s0 = 1.0 if base == "ising" else 1.0 / 3.0
+    assert curve(0.0)[1] == pytest.approx(s0, rel=1e-6)  # the base's slope at 0 (same rho)
+    assert np.max(slopes) == pytest.approx(s0, rel=1e-6)  # steepest at 0 (the draw's safety margins hold)
+    # the slope is the derivative of the value (central differences)
+    fine = np.linspace(-20.0, 20.0, 40001)
+    np.testing.assert_allclose(np.gradient([curve(v)[0] for v in fine], fine)[1:-1],
+                               [curve(v)[1] for v in fine[1:-1]], rtol=0, atol=1e-4 * s0)
+    # not the base curve: the shape differs by more than 1 % of Ms somewhere
+    base_values = np.array([ir.anhysteretic(v, base)[0] for v in x])
+    assert np.max(np.abs(values - base_values)) > 0.01
+
+
+def test_brillouin_limits_are_tanh_and_langevin():
+    x = np.linspace(-5.0, 5.0, 101)
+    np.testing.assert_allclose([of.brillouin(v, 0.5)[0] for v in x], np.tanh(x), atol=1e-12)
+    large = np.array([of.brillouin(v, 1e4)[0] for v in x])
+    np.testing.assert_allclose(large, [ir.anhysteretic(v, "langevin")[0] for v in x], atol=1e-3)
+
+
+def test_custom_curve_slope_at_zero_blend_is_eq6():
+    material = ir.Material(a=7000.0, k=2000.0, alpha=-0.05, Ms=8e5, c=0.3)
+    curve = of.AnhystereticCurve(base="ising", form="sharp_knee", blend=0.0, shape=4.0)
+    m = material
+    for H, M, delta in ((1e4, 2e5, 1.0), (-5e3, 3e5, -1.0), (2e4, 7e5, 1.0), (-3e4, -6e5, 1.0)):
+        assert curve.slope(H, M, delta, m.a, m.k, m.alpha, m.Ms, m.c) == pytest.approx(
+            ir.hysteresis_slope(H, M, delta, m.a, m.k, m.alpha, m.Ms, m.c), rel=1e-12, abs=1e-15)
+
+
+def test_rod_on_mount_keeps_the_static_gain_and_adds_the_mount_mode():
+    mech = ir.Mechanics(chat=7.9e3, khat=6.4e7, zetahat=1.4e-2)
+    p = {"mass_ratio": 2.0, "compliance": 1.5, "mount_damping": 0.05}
+    for form in ("ground_referenced", "mount_referenced"):
+        num, den = of.mount_transfer(mech, p, form)
+        assert num[-1] / den[-1] == pytest.approx(1.0 / mech.khat, rel=1e-12)  # the lumped static gain
+        assert den.size == 5  # two modes
+    undamped = of.mount_transfer(mech, dict(p, mount_damping=0.0), "ground_referenced")
+    # the poles of the undamped-mount system, with the rod's damping removed, are the eigenfrequencies
+    free = replace(mech, chat=0.0)
+    _, den = of.mount_transfer(free, dict(p, mount_damping=0.0), "ground_referenced")
+    poles = np.sort(np.abs(np.roots(den).imag)[::2]) / (2 * np.pi)
+    np.testing.assert_allclose(poles, of.mount_modes(free, p), rtol=1e-6)
+    modes = of.mount_modes(mech, p)
+    lumped = math.sqrt(mech.khat) / (2 * math.pi)
+    assert modes[0] < lumped < modes[1]  # a soft mount splits the lumped mode into two
+    assert undamped[1].size == 5
+
+
+def test_rod_on_mount_follows_the_lumped_model_on_a_slow_drive():
+    st = of.setup("rod_on_mount", 1, 2000)  # modes at 383 and 1336 Hz; 0.156 s long
+    slow = replace(st, field=st.base.conditions.bias + st.base.conditions.amplitude
+                   * np.sin(2 * np.pi * st.time / st.time[-1]))  # one cycle: 6.4 Hz, quasi-static
+    mounted, lumped = of.forward(slow), of.forward(slow.sized(0.0))
+    np.testing.assert_array_equal(mounted["magnetization"], lumped["magnetization"])
+    assert np.max(np.abs(mounted["displacement"] - lumped["displacement"])) < 1e-3 * np.ptp(lumped["displacement"])
+    # and on the drawn drive (steps that excite the modes) it does not
+    fast, plain = of.forward(st), of.forward(st.sized(0.0))
+    assert np.max(np.abs(fast["displacement"] - plain["displacement"])) > 1e-2 * np.ptp(plain["displacement"])
+
+
+@pytest.mark.parametrize("case", ["sensor_resonance", "pinning_temperature", "other_anhysteretic",
+                                  "rod_on_mount"])
+def test_blind_cases_are_drawn_deterministically_and_name_the_expected_slot(case):
+    a, b = (of.simulate(case, 2, "both", n_samples=SHORT) for _ in range(2))
+    for ch in a.clean:
+        np.testing.assert_array_equal(a.clean[ch], b.clean[ch])
+    assert a.truth == b.truth and a.truth["form"] in of.CASES[case].forms
+    from hyst_gym.diagnose.effects import EFFECT_SLOTS
+    assert of.CASES[case].expected <= set(EFFECT_SLOTS)
