@@ -67,7 +67,7 @@ TARGETS = (
     Target("suite_vector_1024", "speed", "every suite task, native vector env, n = 1024 (the slowest task)",
            "at_least", 200_000, "steps/s", ", ".join(SUITES), SUITE_COMMAND),
     Target("first_step_install", "speed", "`import` to the first `env.step` after installing the wheel "
-           "(fresh venv; compiles the kernels)", "at_most", 5.0, "s",
+           "(fresh venv, empty numba cache)", "at_most", 5.0, "s",
            "experiments/results/first_step_time.json", "python -m experiments.first_step_time"),
     Target("first_step_cached", "speed", "`import` to the first `env.step`, later runs (compiled kernels cached)",
            "at_most", 1.0, "s", "experiments/results/first_step_time.json", "python -m experiments.first_step_time"),

@@ -10,9 +10,16 @@ names a test that exists, so a renamed test cannot drop out of the slow tier unn
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
 from slow_tier import is_listed, read_slow_entries
+
+# The tests compare and time the compiled kernels and start no background compile helpers: kernels
+# compile on first use, as plain numba (hyst_gym/physics/background_compile.py; its own modes are
+# tested in fresh interpreters by tests/envs/test_background_compile.py).
+os.environ.setdefault("HYST_GYM_COMPILE", "foreground")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

@@ -18,10 +18,11 @@ MAX_ARGUMENTS = 12
 
 
 def compiled_kernels(path: pathlib.Path) -> dict[str, int]:
-    """``{name: number of positional arguments}`` of the njit/jit-decorated functions in ``path``."""
+    """``{name: number of positional arguments}`` of the njit/jit/background_kernel-decorated functions in ``path``."""
     kernels = {}
     for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
-        if isinstance(node, ast.FunctionDef) and any("jit" in ast.unparse(d) for d in node.decorator_list):
+        if isinstance(node, ast.FunctionDef) and any(word in ast.unparse(d) for d in node.decorator_list
+                                                        for word in ("jit", "background_kernel")):
             kernels[node.name] = len(node.args.args) + len(node.args.kwonlyargs)
     return kernels
 

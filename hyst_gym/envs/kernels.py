@@ -7,7 +7,9 @@ exact first-order-hold update, the exact thermal update and the noisy measuremen
 loop over sub-envs independently, so a sub-env's numbers do not depend on the batch.
 
 The kernels are compiled on first use and cached on disk by numba (``cache=True``); the
-first environment of a fresh install spends 10-30 s compiling them, so
+first environment of a fresh install needs 10-30 s to compile them. The ones Python calls are
+:func:`~hyst_gym.physics.background_compile.background_kernel`: a helper process compiles
+them while their plain-Python twins serve the first steps (same numbers bit for bit), and
 :func:`announce_compilation` says so once, on stderr, when their cache is missing.
 """
 
@@ -24,6 +26,7 @@ from collections import namedtuple
 
 from ..estimation._kernels import (BankParams, BankState, EstimatorState, advance_bank, estimator_step,
                                   interpolate_bank)
+from ..physics.background_compile import BACKGROUND, PYTHON, background_kernel, compile_mode
 from ..physics.hysteresis import advance_each, advance_shared
 from ..physics.linear_system import lti_step
 from ..physics.thermal import a_law_kernel, mean_square_linear_kernel, temperature_step_kernel
@@ -90,7 +93,7 @@ LikelihoodParams = namedtuple("LikelihoodParams", ["channels", "scales", "varian
 # building each as a library of its own first (about 1.5 s less on a fresh install's first
 # step; their callees stay ordinary calls, so the inlining is cheap: see the note on inlining
 # in physics/hysteresis.py). Python still calls them as usual.
-@njit(cache=True, inline="always")
+@background_kernel(inline="always")
 def plant_step(command, active, plant, params):
     """One control period for every sub-env, in place in ``plant`` (a :class:`PlantState`;
     ``params`` a :class:`PlantParams`, both as plain tuples).
@@ -201,7 +204,7 @@ def score_step(plant, view, buffers, score):
         buffers.truncated[i] = steps[i] >= score.truncation_steps
 
 
-@njit(cache=True)
+@background_kernel()
 def fill_observation(obs, plant, view, layout):
     """Normalized observations (n, d), float32, clipped to the documented bounds
     (``plant`` a :class:`PlantState`, ``view`` an :class:`EstimateView`, ``layout`` an
@@ -237,7 +240,7 @@ def fill_observation(obs, plant, view, layout):
                 obs[i, j] = high[j]
 
 
-@njit(cache=True)
+@background_kernel()
 def fill_info(info, rows, plant, view, value_true, penalty, score):
     """Write the per-step truth of sub-envs ``rows`` into ``info`` (len(INFO_KEYS), n).
 
@@ -278,7 +281,7 @@ def field_commands(actions, params, buffers):
     return True
 
 
-@njit(cache=True, inline="always")
+@background_kernel(inline="always")
 def clip_actions(actions, tolerance, clipped):
     """Copy ``actions`` (n, k) into ``clipped``, clipped to [-1, 1]; returns False (nothing
     written) if a value is not finite or exceeds 1 + ``tolerance`` in magnitude."""
@@ -294,7 +297,7 @@ def clip_actions(actions, tolerance, clipped):
     return True
 
 
-@njit(cache=True, inline="always")
+@background_kernel(inline="always")
 def finish_step(plant, view, buffers, score, layout, bank, bank_params):
     """Everything after the estimate of one step: rewards and terminations
     (:func:`score_step`), the per-step truth (:func:`fill_info`, with the PE integrand
@@ -325,7 +328,7 @@ def finish_step(plant, view, buffers, score, layout, bank, bank_params):
     fill_observation(buffers.obs, plant, view, layout)
 
 
-@njit(cache=True)
+@background_kernel()
 def excitation_step(actions, active, plant, view, buffers, params, estimator):
     """One whole Excitation step in one call: actions -> :func:`plant_step` -> the
     estimator's :func:`~hyst_gym.estimation._kernels.estimator_step` -> :func:`finish_step`.
@@ -352,7 +355,7 @@ def excitation_step(actions, active, plant, view, buffers, params, estimator):
     return 0
 
 
-@njit(cache=True)
+@background_kernel()
 def posterior_step(update_rows, measured, log_post, field, stepping, command, active, plant, plant_params,
                    likelihood):
     """One step of a grid posterior's node simulators (the plants only: no estimator bank, score or
@@ -398,7 +401,7 @@ def posterior_step(update_rows, measured, log_post, field, stepping, command, ac
     return 0
 
 
-@njit(cache=True)
+@background_kernel()
 def posterior_vertex(log_post, joint, weights, a_nodes, mean, concentrated, estimate):
     """The grid posterior's estimate of a (:meth:`~hyst_gym.envs.posterior.GridPosterior.estimate`): per
     sub-env ``i`` where the largest of ``weights[i]`` exceeds ``concentrated``, the vertex of the parabola
@@ -452,7 +455,7 @@ def _joint_vertex(joint, best_marginal, offset_marginal):
     return best_marginal, offset_marginal
 
 
-@njit(cache=True)
+@background_kernel()
 def identification_step(actions, active, plant, view, buffers, params, bank, bank_params):
     """One whole step of an env whose estimate is the agent's (Identification) in one call: actions ->
     :func:`plant_step` -> the model bank at the new field (:func:`~hyst_gym.estimation._kernels.advance_bank`,
@@ -475,9 +478,13 @@ __all__ = ["EnvParams", "EstimateView", "ObservationLayout", "PlantParams", "Pla
            "score_step"]
 
 
-#: printed once per process, on stderr, before the first environment compiles its kernels
+#: printed once per process, on stderr, before the first environment compiles its kernels (HYST_GYM_COMPILE=foreground)
 COMPILE_NOTICE = ("hyst-gym: compiling the simulation kernels (first use only, 10-30 s on 2 cores; "
                   "cached afterwards)")
+#: the same news where they compile in a background process (the default; see physics/background_compile.py)
+BACKGROUND_NOTICE = ("hyst-gym: compiling the simulation kernels in a background process (first use only, 10-30 s "
+                     "on 2 cores; cached afterwards); until then the environments step in plain Python: the same "
+                     "numbers, about 50x slower")
 _compile_notice_shown = False
 
 
@@ -495,11 +502,13 @@ def is_cached(kernel) -> bool:
 
 
 def announce_compilation(kernels) -> None:
-    """Print :data:`COMPILE_NOTICE` to stderr, once per process, if any of ``kernels`` is
-    not in numba's cache (so its first call compiles it). A print, not a warning: it is
-    news, not a problem, and must show even where warnings are filtered."""
+    """Print :data:`COMPILE_NOTICE` (:data:`BACKGROUND_NOTICE` in the background mode) to stderr,
+    once per process, if any of ``kernels`` is not in numba's cache (so its first call compiles
+    it). A print, not a warning: it is news, not a problem, and must show even where warnings
+    are filtered. Nothing in the ``python`` mode, which compiles nothing."""
     global _compile_notice_shown
-    if _compile_notice_shown or all(is_cached(kernel) for kernel in kernels):
+    mode = compile_mode()
+    if _compile_notice_shown or mode == PYTHON or all(is_cached(kernel) for kernel in kernels):
         return
     _compile_notice_shown = True
-    print(COMPILE_NOTICE, file=sys.stderr, flush=True)
+    print(BACKGROUND_NOTICE if mode == BACKGROUND else COMPILE_NOTICE, file=sys.stderr, flush=True)

@@ -26,6 +26,7 @@ from enum import IntEnum
 import numpy as np
 from numba import njit
 
+from ..physics.background_compile import background_kernel
 from ..physics.hysteresis import advance_shared
 
 
@@ -88,7 +89,7 @@ def _plain(value):
     return tuple(_plain(field) for field in value) if isinstance(value, tuple) else value
 
 
-@njit(cache=True, inline="always")
+@background_kernel(inline="always")
 def advance_bank(bank, field_to, params):
     """Move each system's bank (:class:`BankState`) along its own field, in place.
 
@@ -136,7 +137,7 @@ def _node_slope(values, grid, j):
     return (values[j + 1] - values[j - 1]) / (grid[j + 1] - grid[j - 1])
 
 
-@njit(cache=True)
+@background_kernel()
 def interpolate_bank(grid, values, theta, out_value, out_slope, out_curvature):
     """Cubic Hermite interpolation of each row of ``values`` (E, G) at ``theta`` (E,).
 
@@ -411,7 +412,7 @@ def observer_step(grid, values, measured, state, observer, hold):
     refresh(grid, values, measured, state, observer)
 
 
-@njit(cache=True)
+@background_kernel()
 def refresh(grid, values, measured, state, observer):
     """Into ``state``: bank values at thetahat (``f_hat``, ``slope``, ``curvature``), ytilde,
     y_eps, sat, sign and the min-max (15) at that sign (``nu``, ``phi``)."""

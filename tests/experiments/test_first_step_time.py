@@ -1,22 +1,31 @@
-"""experiments/first_step_time.py: the README sentence states both timings, the load and the notice."""
+"""experiments/first_step_time.py: the docs sentence states the three runs, the load, the notice and the verdicts."""
 
 from experiments.first_step_time import markdown
 
 
-def test_markdown_states_both_runs_the_load_and_the_compile_notice():
-    text = markdown({"first_s": 29.94, "cached_s": 1.06, "first_notice": "numba says\nhyst-gym: compiling kernels",
-                     "cached_notice": "", "load_average_1min": 0.97, "cores": 2})
-    assert "**29.9 s** the first time" in text and "**1.1 s** afterwards" in text
-    assert "1-min load 1.0" in text and "\"hyst-gym: compiling kernels\"" in text
+def result(first_s: float, cached_s: float, compiled: bool = True) -> dict:
+    first = {"first_step_s": first_s, "episode_steps": 1000, "episode_s": 3.04, "compiled": compiled,
+             "compiled_at_s": 17.2, "notice": "hyst-gym: compiling kernels", "load_average_1min": 0.97}
+    return {"first_s": first_s, "cached_s": cached_s, "first_notice": "hyst-gym: compiling kernels",
+            "cached_notice": "", "load_average_1min": 0.97, "cores": 2, "first": first,
+            "cached": {**first, "first_step_s": cached_s, "notice": ""},
+            "foreground": {**first, "first_step_s": 12.36}}
 
+
+def test_markdown_states_the_three_runs_the_load_and_the_compile_notice():
+    text = markdown(result(1.94, 0.66))
+    assert "**1.9 s** the first time" in text and "**0.7 s** afterwards" in text
+    assert "1-min load up to 1.0" in text and "\"hyst-gym: compiling kernels\"" in text
+    assert "first episode (1000 steps) ended 3.0 s after the start" in text
+    assert "compiled them 17 s after the start" in text and "the first step takes 12.4 s" in text
+    assert "had not finished" in markdown(result(1.94, 0.66, compiled=False))
 
 
 def test_markdown_says_whether_each_target_is_met():
     from experiments.targets import BY_KEY
 
     install, cached = BY_KEY["first_step_install"].bound, BY_KEY["first_step_cached"].bound
-    result = {"first_notice": "", "cached_notice": "", "load_average_1min": 0.1, "cores": 2}
-    fast = markdown({**result, "first_s": install * 0.9, "cached_s": cached * 0.9})
-    slow = markdown({**result, "first_s": install * 1.5, "cached_s": cached * 1.5})
+    fast = markdown(result(install * 0.9, cached * 0.9))
+    slow = markdown(result(install * 1.5, cached * 1.5))
     assert f"≤ {install:g} s met the first time, ≤ {cached:g} s met afterwards" in fast
     assert f"≤ {install:g} s not met the first time, ≤ {cached:g} s not met afterwards" in slow
