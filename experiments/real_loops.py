@@ -301,13 +301,19 @@ def fit_variant(rec, curve, extension, weights, fit_mask, step, base=None):
     return best, good, len(starts)
 
 
+#: A start of the batched fit stops when an accepted step lowers its sum of squares by less than this share:
+#: the best start is polished by the local fit afterwards, and on the shipped loops 1e-6 gives the NRMSEs of
+#: 1e-9 to two decimals (and the same equally good fits but one) in 80 % of the time.
+CONVERGED_IMPROVEMENT = 1e-6
+
+
 def batched_least_squares(model, weights, fit_mask, starts, iterations=80, prune_after=10, prune_factor=10.0):
     """Levenberg-Marquardt (Marquardt's diagonal scaling, steps clipped to the boxes) from every
     start at once: each iteration simulates the Jacobians of all starts (forward differences), then
     the trial steps of all starts, each as one bank of models in one compiled call, instead of one
-    local fit after the other. A start stops when its sum of squares improves by less than 1e-9
-    relatively, its damping exceeds 1e8, or (after ``prune_after`` iterations) it is more than
-    ``prune_factor`` times the best. Returns the values dicts and sums of squares of all starts."""
+    local fit after the other. A start stops when its sum of squares improves by less than
+    CONVERGED_IMPROVEMENT relatively, its damping exceeds 1e8, or (after ``prune_after`` iterations) it is
+    more than ``prune_factor`` times the best. Returns the values dicts and sums of squares of all starts."""
     objective = Objective(model, weights, fit_mask)
     names = model.free_names
     lower = np.array([model.parameters[n].x_bounds[0] for n in names])
@@ -348,7 +354,7 @@ def batched_least_squares(model, weights, fit_mask, starts, iterations=80, prune
         sse_trial = np.einsum("ij,ij->i", r_trial, r_trial)
         for i, s in enumerate(live):
             if sse_trial[i] < sse[s]:
-                converged = sse[s] - sse_trial[i] < 1e-9 * sse[s]
+                converged = sse[s] - sse_trial[i] < CONVERGED_IMPROVEMENT * sse[s]
                 x[s], r[s], sse[s] = trial[i], r_trial[i], sse_trial[i]
                 damping[s] = max(damping[s] / 3.0, 1e-9)
                 stale[s] = True
