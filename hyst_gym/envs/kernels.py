@@ -484,7 +484,7 @@ COMPILE_NOTICE = ("hyst-gym: compiling the simulation kernels (first use only, 1
 #: the same news where they compile in a background process (the default; see physics/background_compile.py)
 BACKGROUND_NOTICE = ("hyst-gym: compiling the simulation kernels in a background process (first use only, 10-30 s "
                      "on 2 cores; cached afterwards); until then the environments step in plain Python: the same "
-                     "numbers, about 50x slower")
+                     "numbers, roughly 100x slower per step")
 _compile_notice_shown = False
 
 

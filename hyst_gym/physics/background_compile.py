@@ -10,8 +10,8 @@ into that same cache, and meanwhile runs the kernel's :func:`python_twin`: its `
 every kernel it calls replaced by their own twins. The twin does the same IEEE double
 arithmetic in the same order as the compiled code (numba's default: no fastmath, so no
 reassociation or fused multiply-add), so the numbers are the same bit for bit
-(``tests/envs/test_background_compile.py`` runs the environments both ways); it is about 50x
-slower. The first call after the helper has written the cache loads it, and from then on the
+(``tests/envs/test_background_compile.py`` runs the environments both ways); it is roughly
+100x slower per step. The first call after the helper has written the cache loads it, and from then on the
 kernel runs compiled.
 
 The environment variable ``HYST_GYM_COMPILE`` chooses (read at each such first call):
@@ -34,6 +34,7 @@ import pickle
 import select
 import subprocess
 import sys
+import threading
 import time
 import types as python_types
 
@@ -191,6 +192,7 @@ class CompileHelper:
         self.requests: dict = {}  # (module, qualname, signature) -> request number
         self.answers: dict = {}  # request number -> DONE or why it failed
         self._unread = b""
+        self._lock = threading.Lock()  # threads of one process share the helper and its pipes
 
     def _start(self) -> str | None:
         """Start a helper; None, or why it could not be started."""
@@ -212,6 +214,10 @@ class CompileHelper:
     def request(self, dispatcher, signature) -> str | None:
         """Ask for ``dispatcher`` at ``signature`` (once). :data:`PENDING` while the helper works on
         it, :data:`DONE` when it has compiled it, else why it cannot (it failed or has ended)."""
+        with self._lock:
+            return self._request(dispatcher, signature)
+
+    def _request(self, dispatcher, signature) -> str | None:
         key = (dispatcher.py_func.__module__, dispatcher.py_func.__qualname__, signature)
         if key not in self.requests:
             if self.process is None or self._idle_and_ended():
@@ -249,7 +255,8 @@ class CompileHelper:
         """Wait up to ``timeout`` s until every request is answered; whether they all are."""
         deadline = time.monotonic() + timeout
         while self.process is not None and len(self.answers) < len(self.requests):
-            self._read_answers()
+            with self._lock:
+                self._read_answers()
             if self.process.poll() is not None or time.monotonic() > deadline:
                 break
             time.sleep(0.05)
