@@ -931,25 +931,29 @@ def _second_material(mat: Material, eff: EffectDraw) -> Material:
     return second
 
 
-def _forward(base: BaseDraw, eff: EffectDraw, time, field, reference=None, cache=None) -> dict:
+def _forward(base: BaseDraw, eff: EffectDraw, time, field, reference=None, cache=None, frame=None) -> dict:
     """Noise-free outputs on the fine grid for effect ``eff``: {"M": true M (A/m),
     "magnetization": M as sensed (A/m), "displacement": x as sensed (m)}. Both channels are
     always computed (the mechanics costs little), so an effect's size never depends on which
     sensors are recorded. ``reference`` (the ``none`` result) supplies M when the effect leaves
     the magnetization unchanged; ``cache`` (a dict) keeps magnetization solves for reuse (a
-    boosted two-phase fraction w needs no new solve)."""
+    boosted two-phase fraction w needs no new solve). ``frame`` (a replay, :func:`replay`): the first
+    record's fine-grid field and true outputs, which set the frames of the static maps (the amplifier's
+    saturation field, the sensors' ranges) and the coil's heating gain, so that they stay the same
+    hardware under another drive."""
     mat, mech = base.material, base.mechanics
+    frame_field = field if frame is None else frame["field"]
     dt = float(time[1] - time[0])
     name = eff.name
     if reference is not None and not EFFECT_SPECS[name].changes_magnetization:
         M = reference["M"]
     else:
-        applied = _applied_field(base, eff, field, dt)
+        applied = _applied_field(base, eff, field, dt, frame_field)
         materials, eddy_k, thermal = [mat], 0.0, None
         if name == "eddy_current":
             eddy_k = eff["k_e"]
         elif name == "thermal_drift":
-            thermal = _thermal(eff, field)
+            thermal = _thermal(eff, frame_field)
         elif name == "anhysteretic_shape":
             materials = [replace(mat, a=eff["a_langevin"], curve="langevin")]
         elif name == "two_phase_rod":
@@ -975,19 +979,21 @@ def _forward(base: BaseDraw, eff: EffectDraw, time, field, reference=None, cache
             # the second mode sees the same forcing, scaled so that its static response is g2
             # times the lumped mode's (forcing/khat)
             x = x + second_mode(forcing / mech.khat, dt, eff["f2"], eff["zeta2"], eff["g2"])
-    out = {"M": M, "magnetization": M, "displacement": x}
+    out = {"M": M, "x": x, "magnetization": M, "displacement": x}
     if name == "sensor_lag":
         out["magnetization"] = sensor_lag(M, dt, eff["tau_m"] * eff["scale"])
         out["displacement"] = sensor_lag(x, dt, eff["tau_x"] * eff["scale"])
     elif name == "sensor_nonlinearity":
         for ch, tag in (("magnetization", "m"), ("displacement", "x")):
-            out[ch] = _nonlinear_sensor(out[ch], eff["scale"] * eff[f"gamma_{tag}"], eff[f"offset_{tag}"])
+            out[ch] = _nonlinear_sensor(out[ch], eff["scale"] * eff[f"gamma_{tag}"], eff[f"offset_{tag}"],
+                                        None if frame is None else frame["M" if tag == "m" else "x"])
     return out
 
 
-def _applied_field(base: BaseDraw, eff: EffectDraw, field, dt: float) -> np.ndarray:
+def _applied_field(base: BaseDraw, eff: EffectDraw, field, dt: float, frame_field=None) -> np.ndarray:
     """The field (A/m) the rod feels, given the recorded one (sampled every ``dt`` s): plus the unrecorded
-    bias H0, through the saturating amplifier ``H/(1 + |H/H_sat|^p)^(1/p)``, or delayed and lagged."""
+    bias H0, through the saturating amplifier ``H/(1 + |H/H_sat|^p)^(1/p)``, or delayed and lagged.
+    ``frame_field``: the drive that sets H_sat (default ``field``)."""
     if eff.name == "input_lag":
         steps = np.arange(len(field), dtype=float)
         delayed = np.interp(steps - eff["delay_in"] * eff["scale"] / dt, steps, field)
@@ -995,7 +1001,7 @@ def _applied_field(base: BaseDraw, eff: EffectDraw, field, dt: float) -> np.ndar
     if eff.name == "field_bias":
         return field + _bias_field(base, eff)
     if eff.name == "amplifier_saturation":
-        h_sat = _saturation_field(eff, field)
+        h_sat = _saturation_field(eff, field if frame_field is None else frame_field)
         return field / (1.0 + np.abs(field / h_sat) ** eff["p"]) ** (1.0 / eff["p"])
     return field
 
@@ -1016,11 +1022,12 @@ def _thermal(eff: EffectDraw, field) -> Thermal:
     return Thermal(gain=eff["rise"] / float(np.mean(field ** 2)), tau=eff["tau_th"], beta_Ms=eff["beta_Ms"])
 
 
-def _nonlinear_sensor(y, gamma: float, offset: float) -> np.ndarray:
+def _nonlinear_sensor(y, gamma: float, offset: float, frame=None) -> np.ndarray:
     """A sensor with a cubic gain error about its zero point: ``y_r + s*(v + gamma*v^3)``,
-    ``v = (y - y_r)/s``, s the half range of y and y_r = mid-range + offset*s."""
-    half = 0.5 * float(np.ptp(y)) or 1.0
-    centre = 0.5 * (float(np.max(y)) + float(np.min(y))) + offset * half
+    ``v = (y - y_r)/s``, s the half range of y and y_r = mid-range + offset*s (range of ``frame``, default y)."""
+    ranged = y if frame is None else frame
+    half = 0.5 * float(np.ptp(ranged)) or 1.0
+    centre = 0.5 * (float(np.max(ranged)) + float(np.min(ranged))) + offset * half
     v = (y - centre) / half
     return centre + half * (v + gamma * v ** 3)
 
@@ -1173,6 +1180,56 @@ def generate(effect: str, seed: int, channels: str = "both", *, n_samples: int |
     truth = dict(sim.truth, noise_std=sigmas)
     recording = Recording(time=sim.time, field=sim.field, metadata=sidecar(seed),
                           source=f"independent synthetic recording, seed {seed}", **noisy)
+    return recording, truth
+
+
+def check_drive(drive, n_samples: int, name: str = "drive") -> np.ndarray:
+    """``drive`` as a float array of ``n_samples`` finite values (A/m), or a ValueError naming the problem."""
+    values = np.asarray(drive, dtype=float)
+    if values.ndim != 1 or values.size != n_samples:
+        raise ValueError(f"{name} must be a 1-D array of {n_samples} samples (the record's), got shape {values.shape}")
+    if not np.all(np.isfinite(values)):
+        raise ValueError(f"{name} must be finite (no NaN or inf)")
+    return values
+
+
+def replay(effect: str, seed: int, channels: str = "both", drive=None, *, noise_seed: int,
+           n_samples: int | None = None):
+    """The hidden system of :func:`generate` ``(effect, seed, channels, n_samples)`` under another ``drive``
+    (A/m at the record's samples; None: its own recorded field): (Recording, truth dict).
+
+    Kept from the first record: the material, mechanics and sensors, the effect's parameters at the size the
+    first record's visibility check settled on, the frames of the static maps and the coil's heating gain
+    (``_forward``'s ``frame``), the start state (demagnetized, then the initial curve to the drive's first
+    value; the mechanics, sensors and coil temperature settled) and the absolute noise standard deviations.
+    New: the drive (held between samples by its cubic spline on the fine grid, as the generator holds its
+    own) and the noise draw, from the stream (seed, "replay", effect, channels, ``noise_seed``), which is
+    never the first record's. Deterministic in all arguments."""
+    from hyst_gym.diagnose.recording import Recording
+
+    if isinstance(noise_seed, bool) or not isinstance(noise_seed, (int, np.integer)) or noise_seed < 0:
+        raise ValueError(f"noise_seed must be an integer >= 0, got {noise_seed!r}")
+    sim = simulate(effect, seed, channels, n_samples=n_samples)
+    base = draw_base(seed, n_samples)
+    time, field, _ = excitation(base)
+    drawn = _draw_effect(effect, base, _forward(base, NO_EFFECT, time, field))
+    settled = sim.truth["effect_parameters"]
+    eff = replace(drawn, values=tuple((k, settled[k]) for k, _ in drawn.values))
+    first = _forward(base, eff, time, field)
+    record_time = time[::OVERSAMPLE]
+    if drive is None:
+        fine, recorded_field = field, field[::OVERSAMPLE].copy()
+    else:
+        recorded_field = check_drive(drive, record_time.size)
+        fine = CubicSpline(record_time, recorded_field)(time)
+    outputs = _recorded(_forward(base, eff, time, fine, frame={"field": field, "M": first["M"], "x": first["x"]}),
+                        tuple(sim.clean))
+    rng = _stream(seed, "replay", effect, channels, str(int(noise_seed)))
+    sigmas = {ch: sim.truth["noise_rel"] * float(np.ptp(y)) for ch, y in sim.clean.items()}
+    noisy = {ch: y + sigmas[ch] * rng.standard_normal(y.size) for ch, y in outputs.items()}
+    truth = dict(sim.truth, noise_std=sigmas, replay={"noise_seed": int(noise_seed), "own_drive": drive is None})
+    recording = Recording(time=record_time.copy(), field=recorded_field, metadata=sidecar(seed),
+                          source=f"independent synthetic recording, seed {seed}, replay {noise_seed}", **noisy)
     return recording, truth
 
 

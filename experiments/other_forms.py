@@ -371,13 +371,14 @@ def rod_frequency_roots(mass_ratio: float, n_modes: int) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- maps (pure functions)
 
-def amplifier(field, form: str, overdrive: float, asymmetry: float = 1.0) -> np.ndarray:
+def amplifier(field, form: str, overdrive: float, asymmetry: float = 1.0, peak: float | None = None) -> np.ndarray:
     """The saturating amplifier's true field for the recorded ``field``: unit small-signal gain,
-    Hs = max|field|/overdrive (overdrive 0: the identity)."""
+    Hs = ``peak``/overdrive, ``peak`` (A/m) the first record's max|field| (default this field's;
+    overdrive 0: the identity)."""
     field = np.asarray(field, dtype=float)
     if overdrive == 0.0:
         return field.copy()
-    hs = float(np.max(np.abs(field))) / overdrive
+    hs = (float(np.max(np.abs(field))) if peak is None else peak) / overdrive
     if form == "tanh":
         return hs * np.tanh(field / hs)
     if form == "arctan":
@@ -390,14 +391,15 @@ def amplifier(field, form: str, overdrive: float, asymmetry: float = 1.0) -> np.
     raise ValueError(f"unknown amplifier form {form!r}")
 
 
-def sensor_map(y, form: str, gain: float, offset: float) -> np.ndarray:
-    """A non-polynomial static sensor map about c = mid-range + offset*s (s the half range):
-    ``c + s*f(gain*v)/gain``, v = (y - c)/s, unit slope at c (gain 0: the identity)."""
+def sensor_map(y, form: str, gain: float, offset: float, frame=None) -> np.ndarray:
+    """A non-polynomial static sensor map about c = mid-range + offset*s (s the half range of ``frame``,
+    default y): ``c + s*f(gain*v)/gain``, v = (y - c)/s, unit slope at c (gain 0: the identity)."""
     y = np.asarray(y, dtype=float)
     if gain == 0.0:
         return y.copy()
-    half = 0.5 * float(np.ptp(y)) or 1.0
-    centre = 0.5 * (float(np.max(y)) + float(np.min(y))) + offset * half
+    ranged = y if frame is None else np.asarray(frame, dtype=float)
+    half = 0.5 * float(np.ptp(ranged)) or 1.0
+    centre = 0.5 * (float(np.max(ranged)) + float(np.min(ranged))) + offset * half
     v = gain * (y - centre) / half
     f = {"arctan": np.arctan, "tanh": np.tanh, "exponential": np.expm1}[form]
     return centre + half * f(v) / gain
@@ -454,16 +456,20 @@ def gain_drift(time, form: str, amplitude: float, tau: float, walk=None, share: 
     raise ValueError(f"unknown gain drift form {form!r}")
 
 
-def thermal_rise(time, field, law: dict, rise: float) -> np.ndarray:
+def thermal_rise(time, field, law: dict, rise: float, frame_field=None) -> np.ndarray:
     """Rod temperature rise (K) through a two-time-constant network driven by ``|H|`` or ``H^2``
     (``law["drive"]``), exact for a drive linear between samples; scaled so that the record's
-    mean drive would heat the rod by ``rise`` K in the steady state.
+    mean drive would heat the rod by ``rise`` K in the steady state (the mean of ``frame_field``'s drive,
+    default this field's: the first record's fixes the coil's heating gain in a replay).
 
     series: tau1*th1' = P - th1 (coil), tau2*th2' = th1 - th2 (rod sees th2);
     parallel: th = w*th_fast + (1-w)*th_slow, each tau_i*th_i' = P - th_i."""
-    field = np.asarray(field, dtype=float)
-    drive = np.abs(field) if law["drive"] == "abs" else field ** 2
-    drive = rise * drive / (float(np.mean(drive)) or 1.0)
+    def power(h):
+        h = np.asarray(h, dtype=float)
+        return np.abs(h) if law["drive"] == "abs" else h ** 2
+
+    drive = power(field)
+    drive = rise * drive / (float(np.mean(drive if frame_field is None else power(frame_field))) or 1.0)
     dt = float(time[1] - time[0])
 
     def stage(u, tau):
@@ -574,6 +580,9 @@ class Setup:
     params: dict
     knob: str | None
     knob_max: float
+    #: A replay's frame (:func:`replay`): the first record's "field", "M" (the mechanics' drive) and "true"
+    #: outputs, which fix the static maps' frames, the heating gain and the stiffness reference (None: its own).
+    frame: dict | None = None
 
     def sized(self, factor: float) -> Setup:
         """The same setup with the knob multiplied by ``factor`` (capped)."""
@@ -809,7 +818,11 @@ def _even_law_drive(st: Setup, M):
     with lambda scaled to the span of M over the record (blend 0: the linearized law (13))."""
     p = st.params
     law = magnetostriction(M, st.base.material.Ms, st.form, p["width"], p["power"])
-    law = law * (float(np.ptp(M)) / (float(np.ptp(law)) or 1.0))
+    if st.frame is None:
+        law = law * (float(np.ptp(M)) / (float(np.ptp(law)) or 1.0))
+    else:
+        framed = magnetostriction(st.frame["M"], st.base.material.Ms, st.form, p["width"], p["power"])
+        law = law * (float(np.ptp(st.frame["M"])) / (float(np.ptp(framed)) or 1.0))
     return (1.0 - p["blend"]) * M + p["blend"] * law
 
 
@@ -836,23 +849,36 @@ def _rod(st: Setup, M):
 def _stiffness(st: Setup, M):
     p, Ms = st.params, st.base.material.Ms
     Mb = p["Mb_fraction"] * Ms
-    if st.form == "sech_dip":
-        g = -1.0 / np.cosh((M - Mb) / (p["width"] * Ms)) ** 2
-    else:
-        g = np.abs((M - Mb) / Ms) ** p["power"]
-    g_ref = float(np.interp(np.median(M), np.sort(M), g[np.argsort(M)]))
+
+    def law(m):
+        if st.form == "sech_dip":
+            return -1.0 / np.cosh((m - Mb) / (p["width"] * Ms)) ** 2
+        return np.abs((m - Mb) / Ms) ** p["power"]
+
+    g = law(M)
+    ref = M if st.frame is None else np.asarray(st.frame["M"])  # the reference stiffness: the first record's
+    g_ref = float(np.interp(np.median(ref), np.sort(ref), law(ref)[np.argsort(ref)]))
     return (1.0 + p["beta"] * g) / (1.0 + p["beta"] * g_ref)
+
+
+def _frame(st: Setup, *keys):
+    """The replay frame's entry at ``keys`` (None when ``st`` is a first record)."""
+    value = st.frame
+    for key in keys:
+        value = None if value is None else value[key]
+    return value
 
 
 def _material_response(st: Setup, field) -> np.ndarray:
     """M (A/m) of the case's material (its heating, its pinning's temperature, its anhysteretic curve)."""
     case, p, mat, method = st.case, st.params, st.base.material, st.numerics["method"]
     if case == "heating_other_law":
-        theta = thermal_rise(st.time, field, p, p["rise"])
+        theta = thermal_rise(st.time, field, p, p["rise"], _frame(st, "field"))
         a_scale, ms_scale = material_scales(theta, p)
         return magnetization(st.time, field, mat, a_scale=a_scale, ms_scale=ms_scale, method=method)
     if case == "pinning_temperature" and p["rise"] > 0.0:
-        k_scale, ms_scale, _ = pinning_scales(thermal_rise(st.time, field, p, p["rise"]), p, st.form, mat)
+        theta = thermal_rise(st.time, field, p, p["rise"], _frame(st, "field"))
+        k_scale, ms_scale, _ = pinning_scales(theta, p, st.form, mat)
         return magnetization(st.time, field, mat, ms_scale=ms_scale, k_scale=k_scale, method=method)
     if case == "other_anhysteretic" and p["blend"] > 0.0:
         curve = AnhystereticCurve(base=mat.curve, form=st.form, blend=p["blend"], shape=p["shape"],
@@ -872,12 +898,15 @@ def _on_mount(st: Setup, M) -> np.ndarray:
     return np.asarray(x, dtype=float)
 
 
-def forward(st: Setup) -> dict:
-    """Noise-free recorded channels {"magnetization", "displacement"} (A/m, m) on the sample grid."""
+def forward(st: Setup, trace: dict | None = None) -> dict:
+    """Noise-free recorded channels {"magnetization", "displacement"} (A/m, m) on the sample grid. ``trace``
+    (a dict) receives the frame a replay keeps (:attr:`Setup.frame`): the field, the mechanics' drive M and
+    the true outputs ahead of the sensors."""
     case, p, mat, num = st.case, st.params, st.base.material, st.numerics
     field = st.field
     if case == "saturating_amplifier":
-        field = amplifier(field, st.form, p["overdrive"], p["asymmetry"])
+        peak = None if st.frame is None else float(np.max(np.abs(st.frame["field"])))
+        field = amplifier(field, st.form, p["overdrive"], p["asymmetry"], peak)
     if case == "input_dynamics":
         field = input_filter(st.time, field, st.form, p)
     M = _material_response(st, field)
@@ -897,6 +926,8 @@ def forward(st: Setup) -> dict:
         x = _on_mount(st, M_drive)
     else:
         x = _lumped(st, M_drive)
+    if trace is not None:
+        trace.update(field=st.field, M=M_drive, true={"magnetization": M, "displacement": x})
     return _sensor_terms(st, {"magnetization": M, "displacement": x})
 
 
@@ -905,13 +936,13 @@ def _sensor_terms(st: Setup, out: dict) -> dict:
     case, p = st.case, st.params
     x = out["displacement"]
     if case == "sensor_nonlinearity":
-        out["displacement"] = sensor_map(x, st.form, p["gain"], p["offset"])
+        out["displacement"] = sensor_map(x, st.form, p["gain"], p["offset"], _frame(st, "true", "displacement"))
     elif case == "sensor_resonance" and p["scale"] > 0.0:
         for ch in _acted_channels(st, BOTH):
             out[ch] = resonant_sensor(st.time, out[ch], p[f"frequency_{ch}"] / p["scale"], p[f"damping_{ch}"])
     elif case in ("sensor_offset_drift", "mains_pickup"):
         for ch in _acted_channels(st, BOTH):
-            span = float(np.ptp(out[ch]))
+            span = float(np.ptp(out[ch] if st.frame is None else st.frame["true"][ch]))
             if case == "mains_pickup":
                 out[ch] = out[ch] + mains(st.time, p["frequency"], p["amplitude"] * span, (p["r3"], p["r5"]),
                                           p["phases"])
@@ -1065,6 +1096,38 @@ def generate(case: str, seed: int, channels: str = "both", *, n_samples: int | N
     recording = Recording(time=sim.time, field=sim.field, metadata=sidecar(seed),
                           source=f"synthetic recording (other forms), seed {seed}", **noisy)
     return recording, dict(sim.truth, noise_std=sigmas)
+
+
+def replay(case: str, seed: int, channels: str = "both", drive=None, *, noise_seed: int,
+           n_samples: int | None = None):
+    """The hidden system of :func:`generate` ``(case, seed, channels, n_samples)`` under another ``drive``
+    (A/m at the record's samples, held linearly between them as the first record's; None: its own recorded
+    field): (Recording, truth dict).
+
+    Kept from the first record: the conditions, material, mechanics and sensors, the effect's form and its
+    parameters at the size the visibility check settled on, the frame (:attr:`Setup.frame`: the static maps'
+    ranges, the amplifier's saturation field, the coil's heating gain, the stiffness reference, the pickup's
+    and drifts' amplitudes), the start state (demagnetized, then the initial curve to the drive's first value;
+    mechanics, sensors and coil temperature settled) and the absolute noise standard deviations. New: the
+    drive, and the noise draw from the stream (seed, "other_forms", "replay", case, channels, ``noise_seed``),
+    never the first record's. Under its own drive the clean channels are the first record's, bit for bit."""
+    from hyst_gym.diagnose.recording import Recording
+
+    if isinstance(noise_seed, bool) or not isinstance(noise_seed, (int, np.integer)) or noise_seed < 0:
+        raise ValueError(f"noise_seed must be an integer >= 0, got {noise_seed!r}")
+    sim = simulate(case, seed, channels, n_samples=n_samples)
+    st = replace(setup(case, seed, n_samples), form=sim.truth["form"], params=dict(sim.truth["effect_parameters"]))
+    trace = {}
+    forward(st, trace)
+    field = st.field.copy() if drive is None else ir.check_drive(drive, st.time.size)
+    outputs = forward(replace(st, field=field, frame=trace))
+    rng = ir._stream(seed, "other_forms", "replay", case, channels, str(int(noise_seed)))
+    sigmas = {ch: sim.truth["noise_rel"] * float(np.ptp(y)) for ch, y in sim.clean.items()}
+    noisy = {ch: outputs[ch] + sigmas[ch] * rng.standard_normal(st.time.size) for ch in BOTH if ch in sim.clean}
+    truth = dict(sim.truth, noise_std=sigmas, replay={"noise_seed": int(noise_seed), "own_drive": drive is None})
+    recording = Recording(time=st.time.copy(), field=field, metadata=sidecar(seed),
+                          source=f"synthetic recording (other forms), seed {seed}, replay {noise_seed}", **noisy)
+    return recording, truth
 
 
 def sidecar(seed: int) -> dict:

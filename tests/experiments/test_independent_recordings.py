@@ -422,3 +422,92 @@ def test_cli_entry_point_exit_status():
                           "--seed", "1", "--out", "x.csv"], cwd=ROOT, capture_output=True, text=True, timeout=60,
                          check=False)
     assert out.returncode == 2 and "invalid choice: 'bogus'" in out.stderr.splitlines()[-1]
+
+
+# ---------------------------------------------------------------------------- replay (all three generators)
+
+REPLAY_SAMPLES = 800
+
+
+def _replayers():
+    """Per generator: (first record and truth, replay(drive, noise_seed) -> (recording, truth)) of one hidden system
+    with an effect whose frame a drive could move (a sensor map, the heating, a drift)."""
+    from experiments import diagnose_next_drive as study
+    from experiments import other_forms as of
+
+    def own(effect="sensor_map", seed=2):
+        first = study.replay(effect, seed, "magnetization", REPLAY_SAMPLES)
+        return (first, None), lambda drive, noise_seed: (
+            study.replay(effect, seed, "magnetization", REPLAY_SAMPLES, drive, noise_seed=noise_seed), None)
+
+    def independent(effect="thermal_drift", seed=3):
+        return (ir.generate(effect, seed, "both", n_samples=REPLAY_SAMPLES),
+                lambda drive, noise_seed: ir.replay(effect, seed, "both", drive, noise_seed=noise_seed,
+                                                    n_samples=REPLAY_SAMPLES))
+
+    def other_forms(case="sensor_nonlinearity", seed=4):
+        return (of.generate(case, seed, "both", n_samples=REPLAY_SAMPLES),
+                lambda drive, noise_seed: of.replay(case, seed, "both", drive, noise_seed=noise_seed,
+                                                    n_samples=REPLAY_SAMPLES))
+
+    return {"own": own, "independent": independent, "other_forms": other_forms}
+
+
+@pytest.mark.parametrize("generator", ["own", "independent", "other_forms"])
+def test_replay_keeps_the_hidden_system_and_start_state_and_draws_new_noise(generator):
+    (first, truth), replay = _replayers()[generator]()
+    n = first.size
+    # a different drive: the first half the same, then the first drive reversed in time (other rates, reversals)
+    other = first.field.copy()
+    other[n // 2:] = first.field[::-1][n // 2:] * 0.8
+    same_noise_a, info_a = replay(other, 5)
+    same_noise_b, info_b = replay(first.field, 5)
+    if truth is not None:  # the same hidden parameters and conditions as the first record
+        for key in ("effect_parameters", "material", "mechanics", "noise_std", "sample_rate"):
+            assert info_a[key] == truth[key] == info_b[key]
+        assert info_a["replay"] == {"noise_seed": 5, "own_drive": False}
+    np.testing.assert_array_equal(same_noise_a.field, other)
+    for ch in first.channels:
+        a, b, y = same_noise_a.output(ch), same_noise_b.output(ch), first.output(ch)
+        sigma = (truth["noise_std"][ch] if truth else float(np.std(b - y)) / np.sqrt(2.0))
+        # same start state: with the same noise draw, the two drives give the same record until they part
+        # (up to the cubic spline's reach of a few samples where the generator holds the drive by one)
+        early = slice(0, n // 2 - 20)
+        assert np.max(np.abs(a[early] - b[early])) < 0.05 * sigma
+        # ... and a different one after (the drive matters)
+        assert np.sqrt(np.mean((a[n // 2 + 20:] - b[n // 2 + 20:]) ** 2)) > 3 * sigma
+        # under the first drive the replay differs from the first record by noise only: the difference is
+        # white with the variance of two independent draws, no trend, no structure
+        difference = b - y
+        assert np.std(difference) == pytest.approx(np.sqrt(2.0) * sigma, rel=0.12)
+        assert abs(np.mean(difference)) < 4 * np.sqrt(2.0) * sigma / np.sqrt(n)
+        lag1 = np.corrcoef(difference[1:], difference[:-1])[0, 1]
+        assert abs(lag1) < 4 / np.sqrt(n)
+        # a third noise seed gives another draw again
+        c = replay(first.field, 6)[0].output(ch)
+        assert np.std(c - b) == pytest.approx(np.sqrt(2.0) * sigma, rel=0.12)
+
+
+@pytest.mark.parametrize("generator", ["independent", "other_forms"])
+def test_replay_under_its_own_drive_is_the_first_record_up_to_noise(generator):
+    (first, truth), replay = _replayers()[generator]()
+    own, info = replay(None, 1)
+    resampled, _ = replay(first.field, 1)
+    for ch in first.channels:
+        clean_gap = resampled.output(ch) - own.output(ch)  # the same noise draw: the clean difference alone
+        # other forms hold the drive linearly (bit for bit); the independent generator refits its cubic spline
+        # to the samples in place of the coil-filtered fine grid: far below the noise
+        assert np.sqrt(np.mean(clean_gap ** 2)) < 0.02 * truth["noise_std"][ch]
+    assert info["replay"]["own_drive"] is True
+
+
+def test_replay_refuses_a_bad_drive_or_noise_seed():
+    from experiments import other_forms as of
+
+    with pytest.raises(ValueError, match="drive must be a 1-D array of 800 samples"):
+        ir.replay("none", 1, "both", np.zeros(10), noise_seed=1, n_samples=REPLAY_SAMPLES)
+    with pytest.raises(ValueError, match="drive must be finite"):
+        of.replay("none_other_numerics", 1, "both", np.full(REPLAY_SAMPLES, np.nan), noise_seed=1,
+                  n_samples=REPLAY_SAMPLES)
+    with pytest.raises(ValueError, match="noise_seed must be an integer >= 0"):
+        ir.replay("none", 1, "both", None, noise_seed=-1, n_samples=REPLAY_SAMPLES)
