@@ -82,10 +82,10 @@ def _v2_options(args):
     from hyst_gym.envs.tasks import TASKS
 
     task_ids = _task_ids(args, "v2", [t for t in suite_ids("v2") if not TASKS[t].rejected])
-    own = [t for t in task_ids if TASKS[t].kind == "dual_control"]
+    own = [t for t in task_ids if TASKS[t].kind in ("dual_control", "discriminate")]
     if own:
-        raise UsageError(f"--tasks: {', '.join(own)} is measured by python -m experiments.suite.dual_control, "
-                         "not by the suite's harness")
+        raise UsageError(f"--tasks: {', '.join(own)} is measured by its own script (python -m "
+                         f"experiments.suite.{TASKS[own[0]].kind}), not by the suite's harness")
     stem = "suite_v2" if profile.name == "full" else f"suite_v2_{profile.name}"
     figure_path = pathlib.Path(args.figure) if args.figure else FIGURES / f"{stem}.png"
     if args.docs and profile.name != "quick":

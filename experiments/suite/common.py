@@ -7,6 +7,7 @@ holds what differs between the kinds (the metric, the agents' estimator, the dra
 
 from __future__ import annotations
 
+import argparse
 import itertools
 import pathlib
 import time
@@ -284,3 +285,37 @@ def env_speed(task_id: str, budget: float = SPEED_BUDGET_S) -> dict:
         venv.step(batch[calls % 8])
         calls += 1
     return {"single": single, "1024": calls * 1024 / (time.perf_counter() - start)}
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with a one-line usage error (exit status 2)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def measurement_main(name: str, doc: str, measure, markdown, argv=None, heldout: int = 24) -> int:
+    """The command line of a task's own measurement script (``python -m experiments.suite.NAME``): ``--heldout``,
+    ``--tuning``, ``--bootstrap`` (each >= 1, else one line and exit status 2) and ``--out``; writes
+    ``suite_v2_NAME.json`` (``measure(heldout, tuning, bootstrap)`` and the command) and ``.md``
+    (``markdown(data)``)."""
+    import json
+    import sys
+
+    parser = OneLineParser(prog=f"python -m experiments.suite.{name}", description=doc.split("\n")[0])
+    parser.add_argument("--heldout", type=int, default=heldout)
+    parser.add_argument("--tuning", type=int, default=10)
+    parser.add_argument("--bootstrap", type=int, default=1000)
+    parser.add_argument("--out", default=str(RESULTS))
+    args = parser.parse_args(argv)
+    if min(args.heldout, args.tuning, args.bootstrap) < 1:
+        print(f"{name}: error: --heldout, --tuning and --bootstrap must be >= 1", file=sys.stderr)
+        return 2
+    data = measure(args.heldout, args.tuning, args.bootstrap)
+    data["command"] = f"python -m experiments.suite.{name} " + " ".join(sys.argv[1:] if argv is None else argv)
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"suite_v2_{name}.json").write_text(json.dumps(data, indent=1))
+    (out / f"suite_v2_{name}.md").write_text(markdown(data))
+    print(f"[{name}] wrote {out / f'suite_v2_{name}.json'}")
+    return 0

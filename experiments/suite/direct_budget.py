@@ -13,7 +13,6 @@ the relative change and whether it is below 2 %. Bad arguments: one line, exit s
 
 from __future__ import annotations
 
-import argparse
 import json
 import pathlib
 import sys
@@ -22,6 +21,7 @@ import time
 import numpy as np
 
 from experiments.suite import common
+from experiments.suite.common import OneLineParser
 from experiments.suite.kinds import task_kind
 
 #: tripling the budget must change the held-out score by less than this fraction
@@ -51,13 +51,6 @@ def budget_check(task_id: str, evaluations: int, tuning: int, heldout: int, log=
     change = abs(high - low) / low
     return {"statistic": task.statistic_name, "budgets": rows, "relative_change": change,
             "flat": bool(change < FLAT_CHANGE)}
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """argparse with a one-line usage error (exit status 2)."""
-
-    def error(self, message):
-        self.exit(2, f"{self.prog}: error: {message}\n")
 
 
 def main(argv=None) -> int:

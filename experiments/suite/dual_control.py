@@ -17,9 +17,6 @@ Writes ``experiments/results/suite_v2_dual_control.json`` and ``.md``. Bad argum
 
 from __future__ import annotations
 
-import argparse
-import json
-import pathlib
 import sys
 import time
 
@@ -179,31 +176,8 @@ def markdown(data: dict) -> str:
     return "\n".join(lines)
 
 
-class OneLineParser(argparse.ArgumentParser):
-    """argparse with a one-line usage error (exit status 2)."""
-
-    def error(self, message):
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
 def main(argv=None) -> int:
-    parser = OneLineParser(prog="python -m experiments.suite.dual_control", description=__doc__.split("\n")[0])
-    parser.add_argument("--heldout", type=int, default=24)
-    parser.add_argument("--tuning", type=int, default=10)
-    parser.add_argument("--bootstrap", type=int, default=1000)
-    parser.add_argument("--out", default=str(OUT))
-    args = parser.parse_args(argv)
-    if min(args.heldout, args.tuning, args.bootstrap) < 1:
-        print("dual_control: error: --heldout, --tuning and --bootstrap must be >= 1", file=sys.stderr)
-        return 2
-    data = measure(args.heldout, args.tuning, args.bootstrap)
-    data["command"] = "python -m experiments.suite.dual_control " + " ".join(sys.argv[1:] if argv is None else argv)
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "suite_v2_dual_control.json").write_text(json.dumps(data, indent=1))
-    (out / "suite_v2_dual_control.md").write_text(markdown(data))
-    print(f"[dual control] wrote {out / 'suite_v2_dual_control.json'}")
-    return 0
+    return common.measurement_main("dual_control", __doc__, measure, markdown, argv, heldout=24)
 
 
 if __name__ == "__main__":

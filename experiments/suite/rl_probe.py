@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 from experiments.suite import common
-from experiments.suite.direct_budget import OneLineParser
+from experiments.suite.common import OneLineParser
 from experiments.suite.kinds import task_kind
 
 OUT = common.RESULTS / "suite_v2_rl_probe.json"

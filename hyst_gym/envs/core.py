@@ -145,6 +145,9 @@ OBSERVATION_DOCS = {
     "estimate_spread": "built-in estimator's uncertainty of a: posterior standard deviation / width(Theta), in [0, 1]",
     "temperature": "measured coil temperature (T − T_ref)/10 K (with temperature_sensor=True)",
     "reference_next": "the dual-control task's displacement reference at the end of the coming step, y / y(Ms)",
+    "p_small_loop": "the discriminate task's posterior probability of the small-loop candidate",
+    "p_pinning": "the discriminate task's posterior probability of the pinning candidate",
+    "p_anhysteretic_shape": "the discriminate task's posterior probability of the anhysteretic-shape candidate",
 }
 
 

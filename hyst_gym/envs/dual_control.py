@@ -26,17 +26,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
-from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space
+from gymnasium.vector import AutoresetMode
 from numba import njit
 
 from ..physics import FirstOrderPlant
 from ..physics.hysteresis import advance_one, magnetization_slope
-from .core import IDENTIFICATION, INFO_KEYS, BatchSimulator, action_array
+from .core import IDENTIFICATION, INFO_KEYS, BatchSimulator
 from .posterior import GridPosterior
+from .vector_single import SingleOfVector, TaskVectorEnv
 from .vector import seed_sub_envs
 
 #: Newton steps of the inverse controller per control step (two leave < 1e-6 Ms of model error at full slew)
@@ -139,40 +137,23 @@ def advance_models(model_m, field_from, field_to, a_hat, k, alpha, Ms, c, kind, 
 MILLING_REFERENCE = MillingReference()
 
 
-class DualControlVectorEnv(VectorEnv):
+class DualControlVectorEnv(TaskVectorEnv):
     """Native vector env of ``hyst_gym/DualControl-v0`` (see :class:`DualControlEnv`, whose page this is
     too). Autoreset ``NEXT_STEP`` (default) or ``DISABLED``; ``SAME_STEP`` is refused (a ValueError)."""
-
-    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
     def __init__(self, num_envs: int = 1, task: str = "hyst_gym/DualControl-v0",
                  controller_estimate: str = "posterior", posterior_nodes: int | None = None,
                  autoreset_mode=AutoresetMode.NEXT_STEP, **overrides):
-        from .tasks import task_spec
-
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         if controller_estimate not in CONTROLLER_ESTIMATES:
             raise ValueError(f"controller_estimate must be one of {CONTROLLER_ESTIMATES}, got {controller_estimate!r}")
-        spec = task_spec(task)
-        if spec.kind != "dual_control":
-            raise ValueError(f"{task!r} is not a dual-control task (kind {spec.kind!r})")
-        self.autoreset_mode = AutoresetMode(autoreset_mode)
-        if self.autoreset_mode == AutoresetMode.SAME_STEP:
-            raise ValueError("DualControlVectorEnv: autoreset_mode SAME_STEP is not supported; use NEXT_STEP or "
-                             "DISABLED")
-        self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
-        self.task = task
-        self.spec_ = spec
-        self.config = config = spec.env_config(**overrides)
+        config = self._setup(num_envs, task, "dual_control", autoreset_mode, overrides)
         if not isinstance(config.transducer, FirstOrderPlant):
             raise ValueError(f"{task!r}: the dual-control task inverts the first-order plant; transducer "
                              f"{config.transducer_name!r} is not supported")
         self.reference = MILLING_REFERENCE
         self.controller_estimate = controller_estimate
-        self.num_envs = n = int(num_envs)
-        self.render_mode = None
-        self.sim = BatchSimulator(config, IDENTIFICATION, n, **spec.simulator_priors())
+        n = self.num_envs
+        self.sim = BatchSimulator(config, IDENTIFICATION, n, **self.spec_.simulator_priors())
         self.posterior = GridPosterior(config, [0], n, None, posterior_nodes)
         hyst = config.hysteresis
         self._hyst = (hyst.alpha, hyst.Ms, hyst.c, hyst.kind, config.max_field_step)
@@ -182,22 +163,11 @@ class DualControlVectorEnv(VectorEnv):
         self._controller_a = np.full(n, config.initial_estimate)
         self._measured = np.zeros((n, 1))
         self._fresh = np.ones(n, dtype=bool)
-        self._autoreset = np.zeros(n, dtype=bool)
-        self._all = np.arange(n)
         self._elapsed = np.zeros(n, dtype=np.int64)
         self._tracking = np.zeros(n)
         self._reference_now = np.zeros(n)
-        self.obs_names = ["output", "field", "elapsed", "a_estimate", "estimate_spread", "reference_next"]
-        low = np.array([-2.0, -1.0, 0.0, -1.0, 0.0, 0.0], dtype=np.float32)
-        high = np.array([2.0, 1.0, 1.0, 1.0, 1.0, 1.0], dtype=np.float32)
-        self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
-        self.single_action_space = spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
-        self.observation_space = batch_space(self.single_observation_space, n)
-        self.action_space = batch_space(self.single_action_space, n)
-
-    @property
-    def observation_names(self) -> list[str]:
-        return list(self.obs_names)
+        self._spaces(["output", "field", "elapsed", "a_estimate", "estimate_spread", "reference_next"],
+                     [-2.0, -1.0, 0.0, -1.0, 0.0, 0.0], [2.0, 1.0, 1.0, 1.0, 1.0, 1.0])
 
     # ---------------------------------------------------------------- episodes
 
@@ -237,15 +207,7 @@ class DualControlVectorEnv(VectorEnv):
 
     def step(self, actions):
         config, sim = self.config, self.sim
-        actions = action_array(actions, (self.num_envs, 1), "actions")
-        if not np.all(np.isfinite(actions)) or np.any(np.abs(actions) > 1.0 + 1e-6):
-            bad = actions[~np.isfinite(actions) | (np.abs(actions) > 1.0 + 1e-6)][0]
-            raise ValueError(f"action value {float(bad)!r} must be a finite number in [-1, 1] (the probe / "
-                             "field_limit)")
-        resetting = self._autoreset.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else \
-            np.zeros(self.num_envs, dtype=bool)
-        if self.autoreset_mode == AutoresetMode.DISABLED and self._autoreset.any():
-            raise RuntimeError("step: some sub-envs are done and autoreset_mode is DISABLED; reset them first")
+        actions, resetting = self._begin_step(actions, "the probe / field_limit")
         a_hat = self._controller(resetting)
         self._controller_a[:] = a_hat
         t_next = (sim.steps + 1) * config.dt
@@ -253,7 +215,7 @@ class DualControlVectorEnv(VectorEnv):
         alpha, Ms, c, kind, max_step = self._hyst
         inverse_fields(sim.field, self._model_m, target, a_hat, sim._k, alpha, Ms, c, kind, max_step,
                        config.max_field_change, config.field_limit, self._command_field)
-        probe = np.clip(actions[:, 0], -1.0, 1.0) * config.field_limit
+        probe = actions[:, 0] * config.field_limit
         command = np.clip((self._command_field + probe) / config.field_limit, -1.0, 1.0)
         command[resetting] = 0.0
         self.posterior.advance(None, np.zeros(0, dtype=np.int64), command)
@@ -269,13 +231,7 @@ class DualControlVectorEnv(VectorEnv):
         true_output = (sim.state[:, sim.model.output_index] + sim.model.output_offset) / sim.scales[0]
         self._tracking[:] = PERCENT * np.abs(true_output - self._reference_now)
         reward = self._reward(terminated)
-        if resetting.any():
-            rows = np.flatnonzero(resetting)
-            self._restart(rows)
-            reward[rows] = 0.0
-            terminated[rows] = False
-            truncated[rows] = False
-        self._autoreset = terminated | truncated
+        self._end_step(reward, terminated, truncated, resetting)
         return self._observation(), reward, terminated, truncated, self._infos()
 
     def _reward(self, terminated) -> np.ndarray:
@@ -309,7 +265,7 @@ class DualControlVectorEnv(VectorEnv):
         return infos
 
 
-class DualControlEnv(gym.Env):
+class DualControlEnv(SingleOfVector):
     """``hyst_gym/DualControl-v0``: identify while working; probing costs tracking error.
 
     ## Description
@@ -361,35 +317,14 @@ class DualControlEnv(gym.Env):
     * v0: first version (suite v2).
     """
 
-    metadata = {"render_modes": []}
+    vector_class = DualControlVectorEnv
 
     def __init__(self, task: str = "hyst_gym/DualControl-v0", render_mode=None, **overrides):
-        if render_mode is not None:
-            raise ValueError(f"render_mode of {task!r} must be None, got {render_mode!r}")
-        self.vector = DualControlVectorEnv(1, task, autoreset_mode=AutoresetMode.DISABLED, **overrides)
-        self.task = task
-        self.config = self.vector.config
-        self.observation_space = self.vector.single_observation_space
-        self.action_space = self.vector.single_action_space
-
-    @property
-    def observation_names(self) -> list[str]:
-        return self.vector.observation_names
+        super().__init__(task, render_mode, **overrides)
 
     @property
     def sim(self):
         return self.vector.sim
-
-    def reset(self, *, seed=None, options=None):
-        super().reset(seed=seed)
-        observation, info = self.vector.reset(seed=[seed], options=options)
-        return observation[0], {key: float(value[0]) for key, value in info.items() if not key.startswith("_")}
-
-    def step(self, action):
-        action = action_array(action, self.action_space.shape)
-        observation, reward, terminated, truncated, info = self.vector.step(action[None, :])
-        return (observation[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]),
-                {key: float(value[0]) for key, value in info.items() if not key.startswith("_")})
 
 
 __all__ = ["CONTROLLER_ESTIMATES", "DualControlEnv", "DualControlVectorEnv", "MillingReference", "inverse_fields"]

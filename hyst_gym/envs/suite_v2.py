@@ -40,6 +40,9 @@ JUMP_WINDOW = (40, 160)   # steps: 2..8 s at dt = 0.05 s
 JUMP_RANGE = (278.15, 323.15)
 
 
+#: the discriminate task's sensor noise (standard deviation of the measured M/Ms per step)
+DISCRIMINATE_NOISE = 3.0e-3
+
 #: the calibration tasks score the estimate from this step on (the job starts after a 5 s warm-up)
 CALIBRATE_SCORED_FROM = 100
 
@@ -58,7 +61,7 @@ def _task(task_id, kind, family, description, difficulty, config, sensors_hidden
 
 
 #: suite v2's tasks (:class:`~hyst_gym.envs.task_spec.TaskSpec`; kind ``calibrate``, ``jump`` or, measured by
-#: ``experiments/suite/dual_control.py`` and rejected, ``dual_control``)
+#: their own scripts in ``experiments/suite/`` and rejected, ``dual_control`` and ``discriminate``)
 TASKS_V2 = (
     _task("hyst_gym/HotCalibrate-v0",
           "calibrate", "hot coil (calibrate)", "Calibrate a hot coil: report a every step while exciting; the coil "
@@ -85,6 +88,12 @@ TASKS_V2 = (
              "tracking error (a rejected candidate: every probe measured costs more tracking error than the "
              "estimator's passive learning leaves; python -m experiments.suite.dual_control)", 0,
              {**CALIBRATE, "output_noise": 1.0e-3}, temperature_prior="raised_cosine", rejected=True),
+    TaskSpec("hyst_gym/Discriminate-v0", "v2", "discriminate", "discriminate (active diagnosis)",
+             "Tell three explanations of a recording apart (small-loop susceptibility, a different pinning k, a "
+             "different anhysteretic width a, each fitted to the recording): design the field that brings the "
+             "posterior of the truth to 0.99 fastest without overheating the coil (a rejected candidate: no floor "
+             "below the agents; python -m experiments.suite.discriminate)", 0,
+             {**CALIBRATE, "output_noise": DISCRIMINATE_NOISE}, temperature_prior="raised_cosine", rejected=True),
 )
 
 

@@ -24,6 +24,7 @@ KINDS = {
                             "hyst_gym.envs.suite_v2:HotCalibrateUnknownKVectorEnv"),
     "jump": ("hyst_gym.envs.suite_v2:DriftJumpEnv", "hyst_gym.envs.suite_v2:DriftJumpVectorEnv"),
     "dual_control": ("hyst_gym.envs.dual_control:DualControlEnv", "hyst_gym.envs.dual_control:DualControlVectorEnv"),
+    "discriminate": ("hyst_gym.envs.discriminate:DiscriminateEnv", "hyst_gym.envs.discriminate:DiscriminateVectorEnv"),
 }
 #: the kinds whose agent-facing job is calibration (the metric is the RMS error of a over the scored steps)
 CALIBRATION_KINDS = ("calibrate", "calibrate_unknown_k")

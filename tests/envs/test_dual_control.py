@@ -1,12 +1,12 @@
 """The dual-control task (hyst_gym/DualControl-v0): the plant inverse, the inverse controller's physics, the
 reward that sums to the score, the overheat charge, single == vector, errors."""
 
-import gymnasium
 import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
 
 import hyst_gym  # noqa: F401
+from task_vector_helpers import assert_single_is_sub_env
 from hyst_gym.envs.dual_control import (DualControlEnv, DualControlVectorEnv, MILLING_REFERENCE, OVERHEAT_ERROR,
                                         MillingReference)
 
@@ -128,21 +128,7 @@ def test_an_overheat_charges_every_step_left():
 
 
 def test_single_env_is_the_vector_sub_env_and_passes_the_checker():
-    from gymnasium.utils.env_checker import check_env
-
-    single = gymnasium.make(TASK)
-    assert type(single.unwrapped) is DualControlEnv
-    check_env(single.unwrapped, skip_render_check=True)
-    vector = gymnasium.make_vec(TASK, num_envs=2, vectorization_mode="vector_entry_point")
-    obs_s, _ = single.reset(seed=7)
-    obs_v, _ = vector.reset(seed=[7, 8])
-    assert np.array_equal(obs_s, obs_v[0])
-    rng = np.random.default_rng(0)
-    for _ in range(30):
-        action = rng.uniform(-0.02, 0.02, (2, 1)).astype(np.float32)
-        obs_s, r_s, *_ = single.step(action[0])
-        obs_v, r_v, *_ = vector.step(action)
-        assert np.array_equal(obs_s, obs_v[0]) and r_s == r_v[0]
+    assert_single_is_sub_env(TASK, DualControlEnv, seed=7, scale=0.02)
 
 
 def test_bad_input_is_a_one_line_error():

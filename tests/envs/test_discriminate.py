@@ -1,0 +1,119 @@
+"""The discriminate task (hyst_gym/Discriminate-v0): the candidates' fit, the exact Bayes posterior against an
+independent recomputation, the reward that sums to the score, the overheat, single == vector, errors."""
+
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+
+import hyst_gym  # noqa: F401
+from task_vector_helpers import assert_single_is_sub_env
+from hyst_gym.envs.discriminate import (CANDIDATES, DECIDED, DiscriminateEnv, DiscriminateVectorEnv,
+                                        discriminate_candidates, recording_drive)
+from hyst_gym.physics import ThermalParams
+from hyst_gym.physics.hysteresis import simulate_shared_small_loop
+
+TASK = "hyst_gym/Discriminate-v0"
+
+
+def _trajectories(config, candidates, field, a_scale=1.0):
+    """Each candidate's M/Ms along ``field`` (from 0, a fixed), by the physics' whole-trajectory simulator."""
+    hyst = config.hysteresis
+    path = np.concatenate([[0.0], field])
+    out = simulate_shared_small_loop(path, np.zeros(3), np.array(candidates.a) * a_scale, np.array(candidates.k),
+                                     np.full(3, hyst.alpha), np.full(3, hyst.Ms), np.full(3, hyst.c),
+                                     np.array(candidates.chi_r), hyst.kind, config.max_field_step)
+    return out[1:] / hyst.Ms
+
+
+def test_the_fitted_candidates_explain_the_recording_better_than_the_nominal_model():
+    """k and a fitted to the small-loop candidate on the recording drive sit closer to it than model (6) with
+    the nominal k and a (the same model without chi_r)."""
+    env = DiscriminateVectorEnv(1, TASK)
+    config, candidates = env.config, env.candidates
+    field = recording_drive(config.episode_steps)
+    traces = _trajectories(config, candidates, field)
+    nominal = _trajectories(config, discriminate_candidates(config, chi_r=0.0), field)[:, 0]
+    miss_nominal = np.sqrt(np.mean((nominal - traces[:, 0]) ** 2))
+    for column in (1, 2):
+        distance = np.sqrt(np.mean((traces[:, column] - traces[:, 0]) ** 2))
+        assert distance == pytest.approx(candidates.recording_distance[column], rel=1e-9)
+        assert distance < miss_nominal
+
+
+def test_the_posterior_is_bayes_over_the_candidates_recomputed_independently():
+    """With the coil's heating switched off (a constant), the env's log-posterior equals the Gaussian
+    log-likelihood of its measured outputs against the physics' own trajectories of the three candidates."""
+    cold = ThermalParams(heat_capacity=5.0, thermal_resistance=4.0, coil_resistance=1e-12)
+    env = DiscriminateVectorEnv(2, TASK, thermal=cold)
+    env.reset(seed=3, options={"truth": ["pinning", 2]})
+    assert list(env.truth) == [1, 2]
+    rng = np.random.default_rng(0)
+    fields, measured = [], []
+    for _ in range(40):
+        action = rng.uniform(-0.3, 0.3, (2, 1)).astype(np.float32)
+        _, _, terminated, truncated, _ = env.step(action)
+        fields.append(env.field.copy())
+        measured.append(env.measured.copy())
+        assert not np.any(terminated | truncated)
+    fields, measured = np.array(fields), np.array(measured)
+    sigma = env.config.output_noise
+    for row in range(2):
+        scale = env.start_temperature[row] / env.config.thermal.reference_temperature
+        traces = _trajectories(env.config, env.candidates, fields[:, row], scale)
+        log_like = -0.5 * np.sum((measured[:, row, None] - traces) ** 2, axis=0) / sigma ** 2
+        assert np.allclose(log_like - log_like.max(), env.log_post[row] - env.log_post[row].max(), atol=1e-6)
+
+
+def test_the_reward_sums_to_minus_the_time_to_the_decision():
+    env = DiscriminateVectorEnv(6, TASK)
+    env.reset(seed=4)
+    total, alive = np.zeros(6), np.ones(6, dtype=bool)
+    undecided_steps, ended = np.zeros(6), np.zeros(6, dtype=bool)
+    for _ in range(200):
+        _, reward, terminated, truncated, info = env.step(np.full((6, 1), 0.6, dtype=np.float32) *
+                                                          np.sign(np.sin(env.steps[:, None] * 0.3) + 1e-9))
+        total += np.where(alive, reward, 0.0)
+        undecided_steps += np.where(alive & ~info["decided"], 1, 0)
+        assert np.all(info["posterior_truth"][info["decided"]] >= DECIDED)
+        ended |= alive & (terminated | truncated)
+        alive &= ~(terminated | truncated)
+        if not alive.any():
+            break
+    assert ended.all() and np.all(~info["overheated"])
+    assert np.allclose(total, -undecided_steps / 200, rtol=0, atol=1e-12)
+
+
+def test_an_overheat_charges_every_step_left_and_ends_the_episode():
+    env = DiscriminateVectorEnv(1, TASK)
+    env.reset(seed=0, options={"initial_temperature": 333.0, "truth": "pinning"})
+    total, steps = 0.0, 0
+    while True:
+        _, reward, terminated, truncated, info = env.step(np.ones((1, 1), dtype=np.float32))
+        total += reward[0]
+        steps += 1
+        if terminated[0] or truncated[0]:
+            break
+    assert info["overheated"][0] and steps < 200
+    assert total == pytest.approx(-1.0 if not info["decided"][0] else -(steps - 1) / 200, abs=1e-12)
+
+
+def test_single_env_is_the_vector_sub_env_and_passes_the_checker():
+    assert_single_is_sub_env(TASK, DiscriminateEnv, seed=9, scale=0.5)
+
+
+def test_bad_input_is_a_one_line_error():
+    env = DiscriminateVectorEnv(1, TASK)
+    with pytest.raises(ValueError, match="reset option truth must be one of"):
+        env.reset(seed=0, options={"truth": "eddy"})
+    with pytest.raises(ValueError, match="unknown option"):
+        env.reset(seed=0, options={"a_true": 7000.0})
+    with pytest.raises(ValueError, match="initial_temperature must be numbers in"):
+        env.reset(seed=0, options={"initial_temperature": 400.0})
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="must be a finite number in"):
+        env.step(np.array([[np.nan]]))
+    with pytest.raises(ValueError, match="not a discriminate task"):
+        DiscriminateVectorEnv(1, "hyst_gym/HotCalibrate-v0")
+    with pytest.raises(ValueError, match="SAME_STEP is not supported"):
+        DiscriminateVectorEnv(1, TASK, autoreset_mode=AutoresetMode.SAME_STEP)
+    assert CANDIDATES == ("small_loop", "pinning", "anhysteretic_shape")
