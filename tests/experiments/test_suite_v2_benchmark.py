@@ -75,6 +75,8 @@ def test_flatness_runs_follow_the_profile():
     (["--suite", "v2", "--tasks", "hyst_gym/Nope-v0"], "--tasks: unknown v2 task id"),
     (["--suite", "v2", "--quick", "--reduced"], "--quick and --reduced exclude each other"),
     (["--suite", "v3"], "--suite: unknown suite version"),
+    (["--suite", "v2", "--tasks", "hyst_gym/DualControl-v0"], "is measured by its own script"),
+    (["--suite", "v2", "--tasks", "hyst_gym/Discriminate-v0"], "experiments.suite.discriminate"),
 ])
 def test_bad_arguments_give_one_line_and_status_2(argv, message, capsys):
     parser = argparse.ArgumentParser()
@@ -82,6 +84,19 @@ def test_bad_arguments_give_one_line_and_status_2(argv, message, capsys):
     assert command.main(parser.parse_args(argv)) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and "\n" not in err
+
+
+def test_the_suite_harness_plays_the_tasks_that_are_not_rejected_by_default():
+    """The rejected candidates (dual control, discriminate: measured by their own scripts) are registered v2
+    ids but not in the harness's default task list."""
+    from hyst_gym.envs.tasks import TASKS, suite_ids
+
+    parser = argparse.ArgumentParser()
+    command.configure_parser(parser)
+    _, task_ids, *_ = command._v2_options(parser.parse_args(["--suite", "v2", "--quick"]))
+    rejected = {t for t in suite_ids("v2") if TASKS[t].rejected}
+    assert {"hyst_gym/DualControl-v0", "hyst_gym/Discriminate-v0"} <= rejected
+    assert task_ids == [t for t in suite_ids("v2") if t not in rejected]
 
 
 def test_speed_only_rewrites_the_speed_and_keeps_the_rest(tmp_path):
