@@ -85,10 +85,16 @@ def assert_same_bits(twin: dict, compiled: dict):
                                  f"{a[differ[:3]]} vs {b[differ[:3]]}"
 
 
-def test_python_twins_give_the_compiled_numbers_bit_for_bit_and_compile_nothing(tmp_path):
+def test_python_twins_give_the_compiled_numbers_bit_for_bit_and_compile_nothing(tmp_path, monkeypatch):
+    from hyst_gym.envs import kernels
+
     twin, compiled_names, _ = run_child(tmp_path, background_compile.PYTHON)
     assert compiled_names == [], f"the plain-Python path compiled {sorted(set(compiled_names))}"
-    compiled = trajectories()  # this process: the compiled kernels (tests/conftest.py: foreground)
+    monkeypatch.setenv(background_compile.MODE_VARIABLE, background_compile.FOREGROUND)
+    compiled = trajectories()  # this process: the compiled kernels
+    entry_kernels = (kernels.excitation_step, kernels.identification_step, kernels.plant_step, kernels.finish_step,
+                     kernels.posterior_step, kernels.posterior_vertex)
+    assert all(kernel.overloads for kernel in entry_kernels), "this process ran a kernel uncompiled"
     assert all(np.isfinite(v).any() and v.size > 100 for v in compiled.values())
     assert_same_bits(twin, compiled)
 
