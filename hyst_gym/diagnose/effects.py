@@ -80,6 +80,18 @@ class BestDetermined:
 
 
 @dataclass(frozen=True)
+class WhenPresent:
+    """The effect is identified by ``name`` where its value is not zero (a term the fit switched on); where it is
+    zero the family's member is a law with no parameter of its own, and ``why`` says so (nothing to refit)."""
+
+    name: str
+    why: str
+
+    def choose(self, fit, effect) -> str | None:
+        return self.name if fit.values.get(self.name, 0.0) != 0.0 else None
+
+
+@dataclass(frozen=True)
 class NoParameter:
     """The effect swaps a law and adds no parameter: nothing to refit per block. ``why`` says so."""
 
@@ -143,6 +155,10 @@ def _thermal_parameters(recording, structure, base_values):
         "heating": Parameter("heating", 0.01 * upper, 0.0, upper, "K/s per (A/m)^2", scale=0.01 * upper),
         "tau_th": Parameter("tau_th", frame.duration, 5 * frame.dt, 1e3 * frame.duration, "s", log=True),
         "beta_Ms": Parameter("beta_Ms", 0.0, -0.01, 0.01, "1/K", scale=1e-3),
+        # the pinning and the reversibility move with the temperature too (the measured gadolinium loops: k
+        # collapses toward the Curie point); linear in the rise as Ms(T), today's law at 0
+        "beta_k": Parameter("beta_k", 0.0, -0.05, 0.05, "1/K", scale=1e-3),
+        "beta_c": Parameter("beta_c", 0.0, -0.02, 0.02, "1/K", scale=1e-3),
         # the family's heating law: drive ~ |H|^p (Joule heating of a current-driven coil: p = 2;
         # core or hysteresis loss: p between 1 and 3)
         "heating_exponent": Parameter("heating_exponent", 2.0, 0.5, 4.0, "1", scale=0.5),
@@ -220,6 +236,14 @@ def _mains_parameters(recording, structure, base_values):
     return out
 
 
+def _curve_mixture_parameters(recording, structure, base_values):
+    # r starts where the second phase has the first one's initial slope Ms*slope_factor/a
+    equal_slope = slope_factor(structure.anhysteretic) / slope_factor(structure.curve)
+    return {"mix_weight": Parameter("mix_weight", 0.0, 0.0, 1.0, "1 (share of the base curve's phase)", scale=0.1),
+            "mix_a_ratio": Parameter("mix_a_ratio", equal_slope, 0.02 * equal_slope, 50.0 * equal_slope,
+                                     "1 (its a over the first phase's a)", log=True)}
+
+
 def _small_loop_parameters(recording, structure, base_values):
     # a reversible susceptibility up to three times the anhysteretic's initial slope
     # Ms*slope_factor/a (fits to measured ferrite loops give 0.4-0.8 times it)
@@ -285,6 +309,13 @@ def _input_dynamics_starts(model, start):
     # from a lag of one step and from a delay of two (a delay and a lag bend the loop alike at low rates)
     dt = model.parameters["tau_in"].scale
     return [start, dict(start, tau_in=0.1 * dt, delay_in=2.0 * dt)]
+
+
+def _curve_mixture_starts(model, start):
+    # halfway between the two curves at equal initial slope, and with a sharper second phase (a sharper knee)
+    equal_slope = model.parameters["mix_a_ratio"].value
+    return [dict(start, mix_weight=0.5, mix_a_ratio=equal_slope), dict(start, mix_weight=0.5,
+                                                                       mix_a_ratio=0.3 * equal_slope)]
 
 
 def _from_initial(model, start):
@@ -358,7 +389,9 @@ def thermal_change_words(recording, values) -> str:
     rise = record_temperature_rise(recording, values)
     a_change = rise / ROOM_TEMPERATURE  # a ~ T: relative change of a = rise / T_amb
     ms_change = -values.get("beta_Ms", 0.0) * rise
-    return (f"over the record a changes by {100 * a_change:+.3g} % and Ms by {100 * ms_change:+.3g} %; the "
+    pinning = "".join(f", {what} by {-100 * values[name] * rise:+.3g} %" for name, what in
+                      (("beta_k", "the pinning k"), ("beta_c", "the reversibility c")) if values.get(name, 0.0))
+    return (f"over the record a changes by {100 * a_change:+.3g} %{pinning} and Ms by {100 * ms_change:+.3g} %; the "
             f"temperature rise that the law a ~ T (4) implies is {rise:.3g} K, an inference through that law, "
             f"not a measurement: the record determines the changes of a and Ms, and the rise is right only where "
             f"a(T) is proportional to T (not near a Curie point); a temperature channel would measure it")
@@ -497,12 +530,14 @@ class Effect:
 
 _REGISTERED = (
     Effect(
-        name="thermal_drift", slot="time variation of the material parameters (a(t), Ms(t))",
+        name="thermal_drift", slot="time variation of the material parameters (a(t), Ms(t), k(t), c(t))",
         words="thermal drift: the material heats up during the record and its anhysteretic parameter a "
-              "moves with temperature (a ~ T, eq. 4)",
-        parameter_names=("heating", "tau_th", "beta_Ms", "heating_exponent"), parameters=_thermal_parameters,
+              "moves with temperature (a ~ T, eq. 4), its Ms, pinning k and reversibility c with it",
+        parameter_names=("heating", "tau_th", "beta_Ms", "heating_exponent", "beta_k", "beta_c"),
+        parameters=_thermal_parameters,
         identified_by="heating", applies=_always, rate_dependent=False, rescue=("heating",),
-        starts=_thermal_starts, search_ranges=("tau_th", "heating_exponent"), details=_thermal_details,
+        starts=_thermal_starts, strategy="staged_pinning",
+        search_ranges=("tau_th", "heating_exponent"), details=_thermal_details,
         confusable={"anhysteretic_shape": _everywhere(_TEMPERATURE),
                     "delta_e": {"displacement": _TEMPERATURE}}),
     Effect(
@@ -559,10 +594,14 @@ _REGISTERED = (
                     "delta_e": {"displacement": _RECORD_M}}),
     Effect(
         name="anhysteretic_shape", slot="anhysteretic curve",
-        words="the other anhysteretic curve (Ising (2) <-> Langevin (3))",
-        parameter_names=(), parameters=_no_parameters,
-        identified_by=NoParameter("it swaps the curve and adds no parameter"), applies=_always,
-        rate_dependent=False, rescue=None, strategy="other_curve", swaps_curve=True,
+        words="another anhysteretic curve: the other one (Ising (2) <-> Langevin (3)), or a mixture of the two with "
+              "its own shape parameter (a Brillouin-like curve, a sharper or softer knee; plotted in "
+              "anhysteretic.png)",
+        parameter_names=("mix_weight", "mix_a_ratio"), parameters=_curve_mixture_parameters,
+        identified_by=WhenPresent("mix_weight", "the plain swap adds no parameter"), applies=_always,
+        rate_dependent=False, rescue=None, strategy="other_curve", swaps_curve=True, starts=_curve_mixture_starts,
+        # no second phase (0) is the plain swap, a member of the family
+        search_ranges=("mix_a_ratio",), absent_at_zero=("mix_weight",),
         confusable={"delta_e": {"displacement": _RECORD_M}}),
     Effect(
         name="small_loop", slot="anhysteretic curve at low field (reversible susceptibility)",

@@ -17,6 +17,7 @@ from .decide import ACCEPT_DELTA_BIC, ACCEPT_IMPROVEMENT
 from .effects import EFFECT_PARAMETERS, effect as registered, effect_starts
 from .fit import BASE_FIT_TOLERANCE, FitResult, Objective, Split, _solve_linear_outputs, global_search
 from .model import Model, Structure, base_parameters, extension_parameters, slope_factor
+from .kernels import PINNING_DRIFT_COLUMNS
 from .recording import Recording
 
 HYSTERESIS_NAMES = ["a", "k", "rho", "Ms", "c"]
@@ -127,6 +128,25 @@ def _local_starts(split, base, effect, model):
     return model, effect_starts(model, effect.name, base.values)
 
 
+def _staged_pinning_starts(split, base, effect, model):
+    """Today's heating law first, the pinning and the reversibility held (:data:`.kernels.PINNING_DRIFT_COLUMNS`
+    at 0), then the whole family from that fit, kept only if the fitting block asks for it (BIC lower by
+    ``ACCEPT_DELTA_BIC``, the bar a candidate must clear against the base model).
+
+    Why: on a plain heating record the two coefficients lower the fitting block's SSE by 0.05 % and bend the
+    extrapolation: the held-out RMSE went from 1.03 to 2.68 noise units (make_recording thermal_drift, seed 1,
+    both channels) where the BIC had preferred today's law by 15."""
+    held = {n: (replace(p, free=False) if n in PINNING_DRIFT_COLUMNS else p) for n, p in model.parameters.items()}
+    held_model = Model(model.recording, model.structure, held, model.max_field_step)
+    first = min((split.fit(held_model, start, max_nfev=40) for start in effect_starts(held_model, effect.name,
+                                                                                     base.values)),
+                key=lambda result: result.sse)
+    full = split.fit(model, first.values, max_nfev=40)
+    if full.bic < first.bic - ACCEPT_DELTA_BIC:
+        return model, [full.values]
+    return held_model, [first.values]
+
+
 def _other_curve_starts(split, base, effect, model):
     """The other anhysteretic curve: from the same initial slope Ms*slope/a, and a fresh search."""
     start = dict(base.values)
@@ -134,8 +154,11 @@ def _other_curve_starts(split, base, effect, model):
     start["a"] = base.values["a"] * ratio
     model = model.with_values(start)
     names = [n for n in HYSTERESIS_NAMES if model.parameters[n].free]
+    # the curve family's mixtures start from the swap's start (a local fit cannot leave w = 0 toward a second
+    # phase whose shape r it does not yet feel)
     return model, [start] + global_search(model, split.noise, split.fit_mask, names, n_points=64, keep=2,
-                                          linear_outputs=_linear_pair(model))
+                                          linear_outputs=_linear_pair(model)) + effect_starts(model, effect.name,
+                                                                                               start)
 
 
 def _with_hysteresis_starts(split, base, effect, model):
@@ -193,7 +216,7 @@ def _mains_starts(split, base, effect, model):
 
 
 #: How the hypothesize stage fits an effect (its ``strategy`` in the registry).
-STRATEGIES = {"local": _local_starts, "other_curve": _other_curve_starts,
+STRATEGIES = {"local": _local_starts, "other_curve": _other_curve_starts, "staged_pinning": _staged_pinning_starts,
               "with_hysteresis": _with_hysteresis_starts, "quadratic_outputs": _quadratic_output_starts,
               "linear_sensor": _linear_sensor_starts, "linear_sensor_scan": _linear_sensor_scan_starts,
               "mains": _mains_starts}

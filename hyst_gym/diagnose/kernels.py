@@ -16,7 +16,8 @@ parameter is zero:
 * ``thermal_drift``: a lumped coil temperature rise ``theta`` (K) obeys
   ``theta' = q*H^2 - theta/tau`` (Joule heating ~ I^2 ~ H^2, eq. (11)), integrated
   exactly with H^2 held at its step mean, and ``a(T) = a*(T_amb + theta)/T_amb`` (4)
-  (a proportional to absolute temperature); optionally ``Ms(T) = Ms*(1 - beta*theta)``.
+  (a proportional to absolute temperature); optionally ``Ms(T) = Ms*(1 - beta*theta)``,
+  ``k(T) = k*(1 - beta_k*theta)`` and ``c(T) = c*(1 - beta_c*theta)`` (:data:`PINNING_DRIFT_COLUMNS`).
 
 Every model starts demagnetized (M = 0) at H = 0 and is first brought quasi-statically to
 the first recorded field, so that the first sample is on the virgin curve.
@@ -44,6 +45,11 @@ from ..physics.thermal import a_law_kernel, mean_square_linear_kernel
 #: Columns of the per-member magnetic parameter matrix used by :func:`simulate_members`.
 MAGNETIC_COLUMNS = ("a", "k", "alpha", "Ms", "c", "H0", "k_e", "heating", "tau_th", "beta_Ms", "chi_r",
                     "heating_exponent")
+#: Optional trailing columns after :data:`MAGNETIC_COLUMNS`: the time variation of the pinning k and of the
+#: reversibility c with the heating's temperature rise theta (K), ``k(T) = k*(1 - beta_k*theta)`` and
+#: ``c(T) = c*(1 - beta_c*theta)`` (1/K each). A row without them (12 columns) has both zero: today's thermal
+#: law, so rows written before them keep their numbers.
+PINNING_DRIFT_COLUMNS = ("beta_k", "beta_c")
 AMBIENT_TEMPERATURE = ROOM_TEMPERATURE  # K, reference temperature of the fitted a (eq. 4)
 
 
@@ -140,6 +146,10 @@ def _simulate_one(time, field, row, kind, max_field_step, ambient, out, b):
     tau = row[8]
     beta = row[9]
     exponent = row[11]
+    beta_k = row[12] if row.shape[0] > 12 else 0.0
+    beta_c = row[13] if row.shape[0] > 13 else 0.0
+    k0 = k
+    c0 = c
     # the heating drive heating*|H|^p is written heating*h_ref^2*(|H|/h_ref)^p with h_ref the record's RMS
     # field, so that ``heating`` keeps its unit (K/s per (A/m)^2) and its size whatever p is
     h_ref = math.sqrt(np.mean(field * field)) + 1e-300
@@ -163,6 +173,11 @@ def _simulate_one(time, field, row, kind, max_field_step, ambient, out, b):
             Ms = Ms0 * (1.0 - beta * theta)
             if Ms < 1e-3 * Ms0:
                 Ms = 1e-3 * Ms0
+            if beta_k != 0.0:
+                # pinning that collapses toward a Curie point: floored like Ms (a k of zero has no loop)
+                k = max(k0 * (1.0 - beta_k * theta), 1e-3 * k0)
+            if beta_c != 0.0:
+                c = min(max(c0 * (1.0 - beta_c * theta), 0.0), 0.999)
         target = field[t] + H0
         if k_e > 0.0:
             gap = target - he
@@ -297,7 +312,7 @@ def first_order_system(rate, gain):
     return np.array([[-rate]]), np.array([gain]), np.array([1.0])
 
 
-__all__ = ["AMBIENT_TEMPERATURE", "MAGNETIC_COLUMNS", "first_order_system", "lti_response",
+__all__ = ["AMBIENT_TEMPERATURE", "MAGNETIC_COLUMNS", "PINNING_DRIFT_COLUMNS", "first_order_system", "lti_response",
            "second_order_system", "simulate_members", "step_classes", "varying_stiffness_response"]
 
 

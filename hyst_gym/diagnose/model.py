@@ -24,6 +24,9 @@ the base model when those parameters vanish:
                                 heating*h_ref^2*(|H|/h_ref)^p (p = 2: Joule heating; h_ref the RMS
                                 field), ``a(T) = a*T/T_amb`` (4) (slope a/T_amb),
                                 ``beta_Ms`` (1/K): ``Ms(T) = Ms*(1 - beta_Ms*(T - T_amb))``
+                                ``beta_k``, ``beta_c`` (1/K): the pinning and the reversibility
+                                move with it too, ``k(T) = k*(1 - beta_k*(T - T_amb))``,
+                                ``c(T) = c*(1 - beta_c*(T - T_amb))`` (today's law at 0)
 ``sensor_lag``                  ``tau_m``, ``tau_x`` (s): first-order sensor lags
 ``quadratic_magnetostriction``  ``zeta_q``: forcing ``zetahat*(M-M0) + zeta_q*(M-M0)^2``
                                 (the M^2 law of (12) about a bias M0 gives zeta_q = zetahat/(2*M0);
@@ -37,7 +40,12 @@ the base model when those parameters vanish:
                                 (Terfenol-D stiffens toward saturation; Clark's Delta-E). The
                                 family holds Clark's M^2 law (delta_e_linear = 0) and a law in
                                 (M - Mb)^2 about another centre Mb (delta_e_linear = -2*delta_e*Mb/Ms)
-``anhysteretic_shape``          the other anhysteretic curve (Ising <-> Langevin)
+``anhysteretic_shape``          the other anhysteretic curve (Ising <-> Langevin), or a mixture:
+                                ``mix_weight`` w and ``mix_a_ratio`` r, the magnetization
+                                ``(1 - w)*M[other curve, a] + w*M[base curve, r*a]`` (two phases,
+                                k, c, Ms and the feedback rho shared): w = 0 is the swap, w = 1 the
+                                base curve; between them Brillouin-like curves, and a sharper or
+                                softer knee (r < 1 or > 1)
 ``input_map``                   ``input_quadratic``, ``input_cubic``, ``input_saturation``,
                                 ``input_saturation_negative``: the field is a static map of the
                                 recorded one, ``H = H_rec*(1 + q*u + c*u^2)/sqrt(1 + s*u^2)`` with
@@ -86,7 +94,7 @@ from ..physics.transducers import RodParams
 from .effects import (DRIFT_NAMES, EFFECTS, GAIN_DRIFT_NAMES, INPUT_DYNAMICS_NAMES, INPUT_MAP_NAMES,
                       MAINS_MIN_CYCLES, MAINS_NAMES, PAPER_MS, SENSOR_MAP_NAMES, applicable_effects, effect,
                       extension_parameters, mapped_field)
-from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, first_order_system, lti_response,
+from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, PINNING_DRIFT_COLUMNS, first_order_system, lti_response,
                       second_order_system, simulate_members, step_classes, step_lti,
                       varying_stiffness_response)
 from .parameter import Parameter, slope_factor
@@ -188,7 +196,8 @@ class Model:
                    k_e=values.get("k_e", 0.0), heating=values.get("heating", 0.0),
                    tau_th=values.get("tau_th", 1.0), beta_Ms=values.get("beta_Ms", 0.0),
                    chi_r=values.get("chi_r", 0.0), heating_exponent=values.get("heating_exponent", 2.0))
-        return np.array([row[c] for c in MAGNETIC_COLUMNS])
+        # the pinning's and the reversibility's time variation (thermal_drift): trailing columns the kernel reads
+        return np.array([row[c] for c in MAGNETIC_COLUMNS] + [values.get(n, 0.0) for n in PINNING_DRIFT_COLUMNS])
 
     def magnetization(self, values_list) -> np.ndarray:
         """Simulated M (A/m) for each values dict: shape (T, len(values_list))."""
@@ -206,6 +215,21 @@ class Model:
             simulated = simulate_members(self.recording.time, field, np.ascontiguousarray(unique), kind,
                                          self.max_field_step, AMBIENT_TEMPERATURE)
             out[:, group] = simulated[:, np.asarray(inverse).reshape(-1)]
+        return self._curve_mixture(values_list, out)
+
+    def _curve_mixture(self, values_list, out):
+        """The ``anhysteretic_shape`` family: ``(1 - w)*M[curve] + w*M[base curve, a*r]`` with w = ``mix_weight``
+        and r = ``mix_a_ratio``, a second phase on the base model's curve with its own shape parameter (the
+        other parameters and the feedback rho shared); ``out`` itself (the plain swapped curve) where w = 0."""
+        weights = [v.get("mix_weight", 0.0) for v in values_list]
+        mixed = [i for i, w in enumerate(weights) if w != 0.0]
+        if not mixed:
+            return out
+        phase = Model(self.recording, replace(self.structure, extension=None), self.parameters, self.max_field_step)
+        second = phase.magnetization([dict(values_list[i], a=values_list[i]["a"] * values_list[i]["mix_a_ratio"],
+                                           mix_weight=0.0) for i in mixed])
+        for column, i in enumerate(mixed):
+            out[:, i] = (1.0 - weights[i]) * out[:, i] + weights[i] * second[:, column]
         return out
 
     def predict(self, values, magnetization=None) -> dict:

@@ -10,6 +10,7 @@ import numpy as np
 from ..physics.constants import ROOM_TEMPERATURE
 from .effects import (EFFECT_PARAMETERS, EFFECT_WORDS, INPUT_MAP_NAMES, SENSOR_MAP_NAMES, effect as registered,
                       record_temperature_rise, temperature_rise_trace, thermal_change_words)
+from ..physics.anhysteretic import anhysteretic_magnetization
 from .fit import FitResult
 from .model import FEM_ROD_NAMES, channel_range, mapped_field, relative_stiffness_change, slope_factor
 
@@ -83,9 +84,33 @@ def slot_shapes(fit) -> list:
         rise = temperature_rise_trace(rec, values)
         a_t = values["a"] * (ROOM_TEMPERATURE + rise) / ROOM_TEMPERATURE
         ms_t = values["Ms"] * (1.0 - values.get("beta_Ms", 0.0) * rise)
+        curves = [("a(t)", rec.time, a_t / a_t[0]), ("Ms(t)", rec.time, ms_t / ms_t[0])]
+        # the pinning and the reversibility as the kernel moves them (floored alike)
+        k_t = np.maximum(1.0 - values.get("beta_k", 0.0) * rise, 1e-3)
+        c_t = values["c"] * (1.0 - values.get("beta_c", 0.0) * rise)
+        curves += [("k(t)", rec.time, k_t / k_t[0])] if values.get("beta_k", 0.0) else []
+        curves += [("c(t)", rec.time, c_t / c_t[0])] if values.get("beta_c", 0.0) and values["c"] else []
         return [("material_drift", "Material parameters over the record (relative to the start)", "time (s)",
-                 "value / value at t = 0", [("a(t)", rec.time, a_t / a_t[0]), ("Ms(t)", rec.time, ms_t / ms_t[0])])]
+                 "value / value at t = 0", curves)]
+    if effect == "anhysteretic_shape":
+        return [_anhysteretic_shape(fit)]
     return []
+
+
+def _anhysteretic_shape(fit):
+    """The fitted anhysteretic curve (the family's mixture) against the two textbook curves (2), (3) at the
+    fitted one's initial slope, over the effective field in units of its a."""
+    values, structure = fit.values, fit.model.structure
+    a, weight = values["a"], values.get("mix_weight", 0.0)
+    h = np.linspace(-6.0 * a, 6.0 * a, 241)
+    swapped = anhysteretic_magnetization(h, a, 1.0, structure.curve)[0]
+    base_a = a * slope_factor(structure.anhysteretic) / slope_factor(structure.curve)
+    base = anhysteretic_magnetization(h, base_a, 1.0, structure.anhysteretic)[0]
+    second = anhysteretic_magnetization(h, a * values.get("mix_a_ratio", 1.0), 1.0, structure.anhysteretic)[0]
+    return ("anhysteretic", "Anhysteretic curve: fitted family against the textbook laws", "H_eff (A/m)",
+            "Man / Ms", [("fitted", h, (1.0 - weight) * swapped + weight * second),
+                         (f"{structure.curve} (textbook)", h, swapped),
+                         (f"{structure.anhysteretic} (textbook, same initial slope)", h, base)])
 
 
 def explain(report) -> str:

@@ -1,0 +1,113 @@
+"""The anhysteretic curve's family (``anhysteretic_shape``): the other curve (Ising (2) <-> Langevin (3)) mixed
+with a phase on the base curve that has its own shape parameter, ``(1 - w)*M[other, a] + w*M[base, r*a]``. The
+plain swap and the base curve as its members, and a record of a mixed curve named, where the plain swap
+leaves most of it unexplained; a record without it is not named."""
+
+import numpy as np
+import pytest
+
+from hyst_gym.diagnose import Recording, diagnose
+from hyst_gym.diagnose.effects import effect
+from hyst_gym.diagnose.kernels import AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, simulate_members
+from hyst_gym.diagnose.make_recording import make_recording_with_truth
+from hyst_gym.diagnose.model import Model, Structure, base_parameters, extension_parameters
+
+
+def _model(recording, extension="anhysteretic_shape"):
+    structure = Structure("none", "ising", extension)
+    base = base_parameters(recording, structure)
+    values = {n: p.value for n, p in base.items()}
+    return Model(recording, structure, {**base, **extension_parameters(recording, structure, values)}, 200.0)
+
+
+def _row(a, alpha, **material):
+    row = dict(material, a=a, alpha=alpha, H0=0.0, k_e=0.0, heating=0.0, tau_th=1.0, beta_Ms=0.0, chi_r=0.0,
+               heating_exponent=2.0)
+    return [row[c] for c in MAGNETIC_COLUMNS]
+
+
+def test_the_swap_and_the_base_curve_are_members_and_the_mixture_is_their_weighted_sum():
+    """w = 0: the plain Langevin swap bit for bit; w = 1 with r*a: the Ising model with that a; w = 0.3: the
+    weighted sum of the two phases, each simulated here on its own with the kernel (alpha from the shared rho)."""
+    recording = make_recording_with_truth("none", 2, output="magnetization", n_samples=800)[0]
+    model = _model(recording)
+    values = dict(model.values(), a=2500.0, k=1200.0, rho=0.2, Ms=8e5, c=0.2)
+    plain = model.magnetization([dict(values, mix_weight=0.0)])[:, 0]
+    material = dict(k=1200.0, Ms=8e5, c=0.2)
+    langevin = simulate_members(recording.time, recording.field, np.array([_row(2500.0, 0.2 * 2500.0 / 8e5 * 3.0,
+                                                                                **material)]), 1, 200.0,
+                                AMBIENT_TEMPERATURE)[:, 0]
+    np.testing.assert_allclose(plain, langevin, rtol=0, atol=1e-12 * 8e5)  # alpha's rounding differs here
+    swap = simulate_members(recording.time, recording.field, np.array([model.magnetic_row(values)]), 1, 200.0,
+                            AMBIENT_TEMPERATURE)[:, 0]
+    np.testing.assert_array_equal(plain, swap)  # today's swap, bit for bit
+    ising = simulate_members(recording.time, recording.field, np.array([_row(2500.0 * 2.2, 0.2 * 2500.0 * 2.2 / 8e5,
+                                                                             **material)]), 0, 200.0,
+                             AMBIENT_TEMPERATURE)[:, 0]
+    full = model.magnetization([dict(values, mix_weight=1.0, mix_a_ratio=2.2)])[:, 0]
+    np.testing.assert_allclose(full, ising, rtol=0, atol=1e-12 * 8e5)
+    mixed = model.magnetization([dict(values, mix_weight=0.3, mix_a_ratio=2.2)])[:, 0]
+    np.testing.assert_allclose(mixed, 0.7 * langevin + 0.3 * ising, rtol=0, atol=1e-9 * 8e5)
+    # the start of r puts the second phase at the first one's initial slope: Ising a = 3 x Langevin a
+    assert model.parameters["mix_a_ratio"].value == pytest.approx(3.0)
+
+
+def _mixed_recording(seed, weight, sharpness, n_samples=2000):
+    """The generator's seed (drive, material, noise level) with a two-phase curve: a Langevin phase of the same
+    initial slope as the seed's Ising material and an Ising phase ``sharpness`` times sharper (a sharper knee),
+    simulated with a 4x finer field substep than the tool's fits use."""
+    recording, _, truth = make_recording_with_truth("none", seed, output="magnetization", n_samples=n_samples)
+    material = dict(k=truth["k"], Ms=truth["Ms"], c=truth["c"])
+    rho = truth["rho"]
+    a_ising = truth["a"] / sharpness
+    rows = np.array([_row(truth["a"] / 3.0, rho * truth["a"] / truth["Ms"], **material),
+                     _row(a_ising, rho * a_ising / truth["Ms"], **material)])
+    phases = [simulate_members(recording.time, recording.field, rows[i:i + 1], kind, 25.0, AMBIENT_TEMPERATURE)[:, 0]
+              for i, kind in ((0, 1), (1, 0))]
+    clean = (1.0 - weight) * phases[0] + weight * phases[1]
+    noise = np.random.default_rng(seed).standard_normal(clean.size) * truth["noise_rel"] * np.ptp(clean)
+    return Recording(time=recording.time, field=recording.field, magnetization=clean + noise)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_mixed_curve_with_a_sharper_knee_is_named_and_explained(seed):
+    """Half Langevin, half an Ising phase three times sharper: the verdict names the anhysteretic slot (or ties
+    it), the fitted weight is a mixture, and the held-out RMSE drops >= 60 % against the base model."""
+    report = diagnose(_mixed_recording(seed, weight=0.5, sharpness=3.0), progress=False)
+    tied = {c.effect for c in report.tied}
+    assert report.verdict == "anhysteretic_shape" or (report.verdict == "ambiguous" and "anhysteretic_shape" in tied), \
+        (report.verdict, tied)
+    shape = next(c for c in report.candidates if c.effect == "anhysteretic_shape")
+    assert 0.05 < shape.fit.values["mix_weight"] < 0.95
+    assert shape.heldout_rmse < 0.4 * report.baseline_heldout
+
+
+def test_a_record_without_it_is_not_named():
+    report = diagnose(make_recording_with_truth("none", 4, output="magnetization", n_samples=2000)[0], progress=False)
+    assert report.verdict == "none", report.verdict
+    assert effect("anhysteretic_shape").absent_at_zero == ("mix_weight",)
+
+
+def test_the_report_plots_the_fitted_curve_against_the_textbook_laws():
+    """anhysteretic.png: at w = 0 the fitted curve is the textbook Langevin curve; a mixture lies between the
+    Langevin curve and a sharper Ising phase, odd and saturating at +-1 (Man/Ms)."""
+    from types import SimpleNamespace
+
+    from hyst_gym.diagnose.report import slot_shapes
+
+    recording = make_recording_with_truth("none", 2, output="magnetization", n_samples=800)[0]
+    model = _model(recording)
+    values = dict(model.values(), a=2000.0, mix_weight=0.0, mix_a_ratio=1.0)
+    (stem, _, _, _, curves), = slot_shapes(SimpleNamespace(values=values, model=model))
+    assert stem == "anhysteretic"
+    (_, h, fitted), (label, _, langevin), (base_label, _, ising) = curves
+    assert "langevin" in label and "ising" in base_label
+    np.testing.assert_array_equal(fitted, langevin)
+    x = h / 2000.0
+    off = x != 0.0  # the closed form (3) away from its removable point
+    np.testing.assert_allclose(langevin[off], 1.0 / np.tanh(x[off]) - 1.0 / x[off], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(ising, np.tanh(x / 3.0), rtol=1e-12, atol=1e-12)  # same initial slope 1/(3a)
+    mixed = slot_shapes(SimpleNamespace(values=dict(values, mix_weight=0.5, mix_a_ratio=0.5), model=model))[0][4][0][2]
+    np.testing.assert_allclose(mixed, 0.5 * langevin + 0.5 * np.tanh(x / 0.5), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(mixed, -mixed[::-1], atol=1e-12)  # odd
+    assert np.all(np.diff(mixed) > 0) and mixed[-1] > 0.9
