@@ -228,14 +228,42 @@ def fisher_design(config, evaluations: int):
                         max_evaluations=evaluations).design
 
 
-def direct_design(task, tuning_seeds, evaluations: int):
-    """CMA-ES over a 9-knot field on ``task``'s statistic of its metric over the tuning draws."""
+#: K below the temperature limit that the hottest start of a calibration task's prior may reach under the
+#: direct design (the references' margin, :data:`baselines.references.SAFETY_MARGIN`)
+DIRECT_DESIGN_MARGIN = 1.0
+
+
+def hottest_start_excess(config, schedule) -> float:
+    """How far (K) the applied field of ``schedule`` (through the field and slew limits) takes the coil above
+    ``temperature_limit - DIRECT_DESIGN_MARGIN`` from the hottest start of the prior, the ambient equal to it
+    (the lumped thermal model the env integrates); 0 where it stays below."""
+    from baselines.references import peak_temperature
+
+    field = schedule.sampled(config.episode_steps, excitation_limits(config))
+    peak = peak_temperature(config, field, float(config.initial_temperature_range[1]))
+    return max(0.0, peak - (config.temperature_limit - DIRECT_DESIGN_MARGIN))
+
+
+def direct_design(task, tuning_seeds, evaluations: int, hottest_safe: bool = False):
+    """CMA-ES over a 9-knot field on ``task``'s statistic of its metric over the tuning draws. ``hottest_safe``
+    (calibration tasks only: no ambient drift, so the heating is a known function of the input): a design that
+    would take the hottest start of the prior within :data:`DIRECT_DESIGN_MARGIN` of the limit scores
+    width(Theta) (what an overheat costs per step) plus that much per K of excess, so the search stays among
+    inputs safe for every start (without it, a longer search spent the heat the tuning draws' starts allowed
+    and overheated hotter held-out starts)."""
     from baselines.direct_design import search_direct_design
     from baselines.suite_agents import Design
 
     config = task.config
+    if hottest_safe and not task.spec.calibrates:
+        raise ValueError(f"direct_design: hottest_safe needs a calibration task, got {task.id!r}")
+    safe = hottest_safe
 
     def score(schedule):
+        if safe:
+            excess = hottest_start_excess(config, schedule)
+            if excess > 0.0:
+                return config.theta_width * (1.0 + excess)
         metric, _, _ = play(task.design_agent([Design("direct_design", schedule)]), task, tuning_seeds)
         return task.statistic(metric[None, :])
 

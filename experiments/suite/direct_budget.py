@@ -3,12 +3,13 @@ compare their scores on the held-out draws (the design is flat in its budget whe
 score by less than :data:`FLAT_CHANGE`).
 
     python -m experiments.suite.direct_budget [--tasks ID,ID] [--evaluations N] [--tuning N] [--heldout N]
-                                              [--out experiments/results/suite_direct_budget.json]
+                                              [--hottest-safe] [--out experiments/results/suite_direct_budget.json]
 
 For each calibration task: CMA-ES over a 9-knot field (:func:`experiments.suite.common.direct_design`) on the
 first ``--tuning`` tuning draws at ``N`` and ``3 N`` evaluations; both designs are played on the first
 ``--heldout`` held-out draws with the task's estimator in the loop; the JSON holds each score (RMS, A/m),
-the relative change and whether it is below 2 %. Bad arguments: one line, exit status 2.
+the relative change and whether it is below 2 %. ``--hottest-safe``: the search keeps to inputs that take the
+prior's hottest start no closer than 1 K to the limit. Bad arguments: one line, exit status 2.
 """
 
 from __future__ import annotations
@@ -29,7 +30,8 @@ FLAT_CHANGE = 0.02
 OUT = common.RESULTS / "suite_direct_budget.json"
 
 
-def budget_check(task_id: str, evaluations: int, tuning: int, heldout: int, log=print) -> dict:
+def budget_check(task_id: str, evaluations: int, tuning: int, heldout: int, log=print,
+                 hottest_safe: bool = False) -> dict:
     """The direct design of ``task_id`` searched at ``evaluations`` and 3x that, scored on held-out draws."""
     from baselines.scenarios import HELDOUT_SEEDS, TUNING_SEEDS
     from baselines.suite_agents import Design
@@ -38,7 +40,7 @@ def budget_check(task_id: str, evaluations: int, tuning: int, heldout: int, log=
     rows = {}
     for budget in (evaluations, 3 * evaluations):
         start = time.time()
-        schedule = common.direct_design(task, TUNING_SEEDS[:tuning], budget)
+        schedule = common.direct_design(task, TUNING_SEEDS[:tuning], budget, hottest_safe=hottest_safe)
         tuned = task.statistic(common.play(task.design_agent([Design("d", schedule)]), task,
                                            TUNING_SEEDS[:tuning])[0][None, :])
         scores = common.play(task.design_agent([Design("d", schedule)]), task, HELDOUT_SEEDS[:heldout])[0]
@@ -61,6 +63,8 @@ def main(argv=None) -> int:
     parser.add_argument("--evaluations", type=int, default=40)
     parser.add_argument("--tuning", type=int, default=10)
     parser.add_argument("--heldout", type=int, default=16)
+    parser.add_argument("--hottest-safe", action="store_true", help="search only inputs that keep the prior's "
+                        "hottest start 1 K below the limit (common.direct_design's hottest_safe)")
     parser.add_argument("--out", default=str(OUT))
     args = parser.parse_args(argv)
     task_ids = [t.strip() for t in args.tasks.split(",") if t.strip()]
@@ -72,7 +76,9 @@ def main(argv=None) -> int:
     start = time.time()
     data = {"command": "python -m experiments.suite.direct_budget " + " ".join(sys.argv[1:] if argv is None else argv),
             "flat_change": FLAT_CHANGE, "tuning_draws": args.tuning, "heldout_draws": args.heldout,
-            "tasks": {task: budget_check(task, args.evaluations, args.tuning, args.heldout) for task in task_ids}}
+            "hottest_safe": args.hottest_safe,
+            "tasks": {task: budget_check(task, args.evaluations, args.tuning, args.heldout,
+                                         hottest_safe=args.hottest_safe) for task in task_ids}}
     data["wall_s"] = round(time.time() - start, 1)
     out = pathlib.Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

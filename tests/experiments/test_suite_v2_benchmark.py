@@ -197,6 +197,31 @@ def test_k_task_reference_also_plays_the_design_searched_with_k_known():
     assert all(scores.shape == (2,) and np.all(scores >= 0) for _, scores in agents.values())
 
 
+def test_the_hottest_safe_direct_design_keeps_the_hottest_start_below_the_limit():
+    """With hottest_safe the search returns an input whose peak temperature from the prior's hottest start,
+    recomputed here by stepping the lumped thermal model, stays 1 K below the limit; a jump task refuses it."""
+    from baselines.references import peak_temperature
+    from experiments.suite.common import direct_design, excitation_limits
+
+    task = task_kind(CALIBRATE)
+    config = task.config
+    schedule = direct_design(task, [300_000], 12, hottest_safe=True)
+    field = schedule.sampled(config.episode_steps, excitation_limits(config))
+    thermal = config.thermal
+    start = config.initial_temperature_range[1]
+    temperature, previous, peak = start, 0.0, start
+    decay = np.exp(-config.dt / thermal.time_constant)
+    for h in field:  # T' = -(T - T_start)/tau + R_th*P(H)/tau, exact per step for the mean square of a linear ramp
+        power = thermal.power_per_square_field * (previous ** 2 + previous * h + h ** 2) / 3
+        target = start + thermal.thermal_resistance * power
+        temperature = target + (temperature - target) * decay
+        previous, peak = h, max(peak, temperature)
+    assert peak == pytest.approx(peak_temperature(config, field, start), rel=1e-12)
+    assert peak <= config.temperature_limit - 1.0
+    with pytest.raises(ValueError, match="hottest_safe needs a calibration task"):
+        direct_design(task_kind("hyst_gym/DriftJump-v0"), [300_000], 2, hottest_safe=True)
+
+
 def test_direct_budget_check_records_both_budgets_and_their_change(tmp_path, capsys):
     """The budget check searches at N and 3 N evaluations and says whether the held-out score moved by less
     than 2 %; its relative change is recomputed here from the two scores; a bad task is one line, status 2."""
