@@ -155,7 +155,7 @@ def markdown(data: dict) -> str:
                   f"({'above' if data['in_suite'] else 'not above'} 25 %).", "",
               f"Candidates at 20 C: small_loop chi_r = {cand['chi_r'][0]:g}; pinning k = {cand['k'][1]:.1f} A/m "
               f"(RMS distance to small_loop on the recording {cand['recording_distance'][1]:.2e} of Ms); "
-              f"anhysteretic_shape a = {cand['a'][2]:.1f} A/m ({cand['recording_distance'][2]:.2e}).", ""]
+              f"anhysteretic_width a = {cand['a'][2]:.1f} A/m ({cand['recording_distance'][2]:.2e}).", ""]
     return "\n".join(lines)
 
 

@@ -147,7 +147,7 @@ OBSERVATION_DOCS = {
     "reference_next": "the dual-control task's displacement reference at the end of the coming step, y / y(Ms)",
     "p_small_loop": "the discriminate task's posterior probability of the small-loop candidate",
     "p_pinning": "the discriminate task's posterior probability of the pinning candidate",
-    "p_anhysteretic_shape": "the discriminate task's posterior probability of the anhysteretic-shape candidate",
+    "p_anhysteretic_width": "the discriminate task's posterior probability of the anhysteretic-width candidate",
 }
 
 

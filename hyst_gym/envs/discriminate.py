@@ -1,13 +1,15 @@
 """Discriminate (active diagnosis): which of three explanations of a recording is the material's?
 
-A recording of the transducer (the magnetization channel, M/Ms, driven by the paper-style ramp
-:data:`RECORDING_DRIVE`: up to 60 kA/m and back in 10 s) is explained about equally well by three
-candidates, each a model of :mod:`hyst_gym.physics`, named as the mismatch tool's effects would name them:
+A recording of the transducer (the magnetization channel, M/Ms, driven by a ramp up to
+:data:`RECORDING_PEAK` and back in 10 s, :func:`recording_drive`) is explained about equally well by three
+candidates, each a model of :mod:`hyst_gym.physics`: the mismatch tool's ``small_loop`` effect, and the base
+model with one parameter refitted (the explanation without an effect, which the tool weighs effects
+against):
 
 * ``small_loop``: model (6) with the small-loop extension, a reversible low-field susceptibility
   ``chi_r`` (:data:`~hyst_gym.physics.hysteresis.SMALL_LOOP_EXTENSION`);
-* ``pinning``: model (6) with a different pinning constant k (the tool's time variation of k);
-* ``anhysteretic_shape``: model (6) with a different a (the anhysteretic curve's width, as a temperature
+* ``pinning``: model (6) with a different pinning constant k;
+* ``anhysteretic_width``: model (6) with a different a (the anhysteretic curve's width, as a temperature
   shift would give).
 
 The small-loop candidate's ``chi_r`` is set (:data:`SMALL_LOOP_CHI_R`); the others' k and a are fitted to it on
@@ -37,12 +39,12 @@ from .core import TEMPERATURE_BOUND, TEMPERATURE_SCALE
 from .vector_single import SingleOfVector, TaskVectorEnv
 
 #: the names of the candidates, in the order of the posterior's columns
-CANDIDATES = ("small_loop", "pinning", "anhysteretic_shape")
+CANDIDATES = ("small_loop", "pinning", "anhysteretic_width")
 #: the small-loop candidate's reversible low-field susceptibility (dimensionless, dM/dH units)
 SMALL_LOOP_CHI_R = 1.0
 #: the posterior probability of the truth at which it is decided
 DECIDED = 0.99
-#: the recording that the candidates explain: a ramp up to 60 kA/m in 5 s and back down (200 steps of 0.05 s)
+#: the peak field (A/m) of the recording that the candidates explain: a ramp up to it in 5 s and back down
 RECORDING_PEAK = 6.0e4
 
 
@@ -288,7 +290,7 @@ class DiscriminateEnv(SingleOfVector):
     Active diagnosis. A recording (the magnetization channel driven by a ramp up to 60 kA/m and back) is
     explained about equally well by three candidates of :mod:`hyst_gym.physics`: ``small_loop`` (model (6)
     with a reversible low-field susceptibility chi_r = 1), ``pinning`` (model (6) with k fitted to that
-    recording) and ``anhysteretic_shape`` (model (6) with a fitted). Each episode draws the truth and the
+    recording) and ``anhysteretic_width`` (model (6) with a fitted). Each episode draws the truth and the
     coil's start temperature (raised cosine over 5..45 C, measured; a follows it, eq. (4), in every
     candidate); the hot coil of the calibration tasks heats at about 13 K/s at 81 kA/m and overheats at
     60 C. The task's estimator is the exact Bayes posterior over the three (uniform prior, Gaussian noise of
@@ -306,7 +308,7 @@ class DiscriminateEnv(SingleOfVector):
     | 1 | field | -1 | 1 | H / 1e5 A/m |
     | 2 | elapsed | 0 | 1 | step / 200 |
     | 3 | temperature | -5 | 5 | measured coil temperature (T - 293.15 K) / 10 K |
-    | 4..6 | p_small_loop, p_pinning, p_anhysteretic_shape | 0 | 1 | the posterior probabilities |
+    | 4..6 | p_small_loop, p_pinning, p_anhysteretic_width | 0 | 1 | the posterior probabilities |
 
     ## Rewards
     ``-1/200`` for every step that ends with the truth's posterior below 0.99, and at an overheat ``-1/200``

@@ -116,4 +116,4 @@ def test_bad_input_is_a_one_line_error():
         DiscriminateVectorEnv(1, "hyst_gym/HotCalibrate-v0")
     with pytest.raises(ValueError, match="SAME_STEP is not supported"):
         DiscriminateVectorEnv(1, TASK, autoreset_mode=AutoresetMode.SAME_STEP)
-    assert CANDIDATES == ("small_loop", "pinning", "anhysteretic_shape")
+    assert CANDIDATES == ("small_loop", "pinning", "anhysteretic_width")
