@@ -40,8 +40,11 @@ MAINS_NAMES = {ch: tuple(f"{term}_{ch[0]}" for term in ("mains_cos", "mains_sin"
                for ch in ("magnetization", "displacement")}
 #: The input map's coefficients in the order :func:`.model.mapped_field` takes them.
 INPUT_MAP_NAMES = ("input_quadratic", "input_cubic", "input_saturation", "input_saturation_negative")
-#: The input dynamics' lag and delay (s), in the order :func:`.model.input_dynamics` takes them.
-INPUT_DYNAMICS_NAMES = ("tau_in", "delay_in")
+#: The input dynamics' lag, delay and second time constant (s), in the order :func:`.model.input_dynamics` takes
+#: them: the filter 1/(1 + tau_in*s + tau2_in^2*s^2) after the delay (tau2_in = 0: a first-order lag).
+INPUT_DYNAMICS_NAMES = ("tau_in", "delay_in", "tau2_in")
+#: The sensor dynamics' time constants per channel (s): 1/(1 + tau*s + tau2^2*s^2) (:func:`.model.sensor_dynamics`).
+SENSOR_DYNAMICS_NAMES = {"magnetization": ("tau_m", "tau2_m"), "displacement": ("tau_x", "tau2_x")}
 #: Mains pickup needs this many cycles in the record (a sinusoid of known frequency is fixed by a few)
 #: and its third harmonic below the Nyquist frequency.
 MAINS_MIN_CYCLES = 3
@@ -166,12 +169,18 @@ def _thermal_parameters(recording, structure, base_values):
 
 
 def _sensor_lag_parameters(recording, structure, base_values):
+    # per channel the filter 1/(1 + tau*s + tau2^2*s^2): tau2 = 0 a first-order lag (today's family), tau2 > 0 a
+    # resonance at 1/(2*pi*tau2) Hz with damping ratio tau/(2*tau2), from a tenth of the sampling rate down to 20
+    # cycles over the record (a probe or an amplifier that rings)
     frame = Frame.of(recording)
     out = {}
-    for name, channel in (("tau_m", "magnetization"), ("tau_x", "displacement")):
+    for channel, (tau, _) in SENSOR_DYNAMICS_NAMES.items():
         free = _output_free(recording, structure, channel)
-        out[name] = Parameter(name, frame.dt if free else 0.0, 0.0, 0.05 * frame.duration, "s", scale=frame.dt,
-                              free=free)
+        out[tau] = Parameter(tau, frame.dt if free else 0.0, 0.0, 0.05 * frame.duration, "s", scale=frame.dt,
+                             free=free)
+    for channel, (_, tau2) in SENSOR_DYNAMICS_NAMES.items():
+        free = _output_free(recording, structure, channel)
+        out[tau2] = Parameter(tau2, 0.0, 0.0, frame.duration / (40 * np.pi), "s", scale=frame.dt, free=free)
     return out
 
 
@@ -203,9 +212,11 @@ def _input_map_parameters(recording, structure, base_values):
 
 def _input_dynamics_parameters(recording, structure, base_values):
     # a coil's L/R or an amplifier's bandwidth: a lag and a transport delay of up to a few % of the record
+    # and a second-order filter (an amplifier's two poles; tau2_in = 0: the first-order lag)
     frame = Frame.of(recording)
     return {"tau_in": Parameter("tau_in", frame.dt, 0.0, 0.05 * frame.duration, "s", scale=frame.dt),
-            "delay_in": Parameter("delay_in", 0.0, 0.0, 0.02 * frame.duration, "s", scale=frame.dt)}
+            "delay_in": Parameter("delay_in", 0.0, 0.0, 0.02 * frame.duration, "s", scale=frame.dt),
+            "tau2_in": Parameter("tau2_in", 0.0, 0.0, frame.duration / (40 * np.pi), "s", scale=frame.dt)}
 
 
 def _per_channel_terms(names_by_channel, lower, upper, scale, unit="1 (of the channel's half-span)"):
@@ -306,9 +317,11 @@ def _input_map_starts(model, start):
 
 
 def _input_dynamics_starts(model, start):
-    # from a lag of one step and from a delay of two (a delay and a lag bend the loop alike at low rates)
+    # from a lag of one step and from a delay of two (a delay and a lag bend the loop alike at low rates), and
+    # from two poles (damping ratio 0.7 at 1/(2*pi*2*dt)): the fit cannot leave tau2_in = 0 by itself, where the
+    # field's dependence on tau2_in is flat (it enters squared)
     dt = model.parameters["tau_in"].scale
-    return [start, dict(start, tau_in=0.1 * dt, delay_in=2.0 * dt)]
+    return [start, dict(start, tau_in=0.1 * dt, delay_in=2.0 * dt), dict(start, tau_in=2.8 * dt, tau2_in=2.0 * dt)]
 
 
 def _curve_mixture_starts(model, start):
@@ -413,6 +426,18 @@ def _mains_details(values, recording) -> str:
 
 
 # ---------------------------------------------------------------------------- applicability
+
+
+def _sensor_dynamics_details(values, recording) -> str:
+    """The fitted resonance of each sensor that has one, in Hz and as a damping ratio."""
+    words = []
+    for channel, (tau, tau2) in SENSOR_DYNAMICS_NAMES.items():
+        if values.get(tau2, 0.0) > 0.0:
+            words.append(f"the {channel} sensor resonates at {1.0 / (2 * np.pi * values[tau2]):.4g} Hz with a "
+                         f"damping ratio of {values.get(tau, 0.0) / (2 * values[tau2]):.2g}")
+        elif values.get(tau, 0.0) > 0.0:
+            words.append(f"the {channel} sensor lags by {values[tau]:.3g} s (first order)")
+    return f" ({'; '.join(words)})" if words else ""
 
 
 def _always(recording, structure) -> bool:
@@ -568,15 +593,20 @@ _REGISTERED = (
         confusable={"sensor_lag": {"displacement": _BROADBAND + ", or " + _RECORD_M, "both": _BROADBAND},
                     "delta_e": {"both": _BROADBAND + " at two bias fields"}}),
     Effect(
-        name="sensor_lag", slot="sensor dynamics (a lag)",
-        words="sensor lag: a first-order lag in the output sensor(s)",
-        parameter_names=("tau_m", "tau_x"), parameters=_sensor_lag_parameters,
+        name="sensor_lag", slot="sensor dynamics (a lag or a resonance)",
+        words="sensor dynamics: the output sensor(s) filter the true output, a first-order lag or a second-order "
+              "low-pass with a resonance (a probe or an amplifier that rings)",
+        parameter_names=("tau_m", "tau_x", "tau2_m", "tau2_x"), parameters=_sensor_lag_parameters,
         identified_by=FirstFree(("tau_x", "tau_m")), applies=_always, rate_dependent=True, rescue=(),
+        strategy="sensor_dynamics_scan", details=_sensor_dynamics_details,
+        # no resonance (tau2 = 0) is the first-order lag, a member of the family, not a wall
+        absent_at_zero=("tau2_m", "tau2_x"),
         confusable={}),
     Effect(
         name="input_lag", slot="input dynamics (recorded to true field): a lag and a delay",
         words="input dynamics: the field in the material lags the recorded one (a coil's L/R or an amplifier's "
-              "bandwidth: a first-order lag tau_in and a delay delay_in)",
+              "bandwidth: a delay delay_in, then a first-order lag tau_in or two poles "
+              "1/(1 + tau_in*s + tau2_in^2*s^2))",
         parameter_names=INPUT_DYNAMICS_NAMES, parameters=_input_dynamics_parameters, identified_by=BestDetermined(),
         applies=_always, rate_dependent=True, rescue=("tau_in",), starts=_input_dynamics_starts,
         # no lag or no delay (0) is a member of the family (a pure delay, a pure lag), not a wall

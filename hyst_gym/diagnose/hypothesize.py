@@ -14,9 +14,10 @@ from dataclasses import replace
 import numpy as np
 
 from .decide import ACCEPT_DELTA_BIC, ACCEPT_IMPROVEMENT
-from .effects import EFFECT_PARAMETERS, effect as registered, effect_starts
+from .effects import EFFECT_PARAMETERS, SENSOR_DYNAMICS_NAMES, effect as registered, effect_starts
 from .fit import BASE_FIT_TOLERANCE, FitResult, Objective, Split, _solve_linear_outputs, global_search
-from .model import Model, Structure, base_parameters, extension_parameters, slope_factor
+from .kernels import step_classes
+from .model import Model, Structure, base_parameters, extension_parameters, sensor_dynamics, slope_factor
 from .kernels import PINNING_DRIFT_COLUMNS
 from .recording import Recording
 
@@ -26,6 +27,12 @@ HYSTERESIS_NAMES = ["a", "k", "rho", "Ms", "c"]
 RESCUE_RMSE = 3.0
 #: The mains frequencies tried (Hz); each gets its own fit and the lower fitting-block SSE wins.
 MAINS_FREQUENCIES = (50.0, 60.0)
+#: The sensor-dynamics scan: natural frequencies per channel, geometric from 20 cycles per record to this share
+#: of the sampling rate, at each of the damping ratios; and first-order lags of these many steps.
+SENSOR_SCAN_FREQUENCIES = 16
+SENSOR_SCAN_TOP = 0.45
+SENSOR_SCAN_DAMPING = (0.05, 0.15, 0.4, 0.8)
+SENSOR_SCAN_LAGS = (0.3, 1.0, 3.0, 10.0, 30.0)
 
 
 def in_threads(function, items, workers: int) -> list:
@@ -210,6 +217,46 @@ def _linear_sensor_scan_starts(split, base, effect, model):
     return model, [start] + best
 
 
+def sensor_dynamics_grid(time):
+    """``[(tau, tau2)]`` (s) of the sensor-dynamics scan for a record with sample times ``time``: first-order lags
+    (tau2 = 0) and second-order low-passes over :data:`SENSOR_SCAN_FREQUENCIES` natural frequencies and the
+    damping ratios :data:`SENSOR_SCAN_DAMPING`."""
+    dt = float(np.median(np.diff(time)))
+    duration = float(time[-1] - time[0])
+    grid = [(lags * dt, 0.0) for lags in SENSOR_SCAN_LAGS]
+    top = SENSOR_SCAN_TOP / dt
+    for frequency in np.geomspace(min(20.0 / duration, 0.5 * top), top, SENSOR_SCAN_FREQUENCIES):
+        tau2 = 1.0 / (2 * np.pi * frequency)
+        grid += [(2.0 * damping * tau2, tau2) for damping in SENSOR_SCAN_DAMPING]
+    return grid
+
+
+def _sensor_dynamics_scan_starts(split, base, effect, model):
+    """Per output channel, the filter of :func:`sensor_dynamics_grid` that brings the base model's output
+    closest to the recorded one on the fitting block; that start and the plain one (a lag of one step).
+
+    Why a scan: the output's dependence on tau2 is flat at tau2 = 0 (it enters squared), so a local fit
+    from the first-order lag never finds a resonance; and the filter acts after the model, so each point of
+    the grid costs one filtering of the base model's output, not a simulation."""
+    start = effect_starts(model, effect.name, base.values)[0]
+    true_output = model.predict(dict(start, **{n: 0.0 for n in effect.parameter_names}))
+    time, fit_mask = model.recording.time, split.fit_mask
+    grid, classes = sensor_dynamics_grid(time), step_classes(time)
+    scanned = dict(start)
+    for channel in model.channels:
+        names = SENSOR_DYNAMICS_NAMES[channel]
+        if not all(model.parameters[n].free for n in names):
+            continue
+        recorded = model.recording.output(channel)[fit_mask]
+        sse = [float(np.sum((sensor_dynamics(time, true_output[channel], tau, tau2, classes)[fit_mask]
+                             - recorded) ** 2)) for tau, tau2 in grid]
+        sse = [value if np.isfinite(value) else np.inf for value in sse]
+        tau, tau2 = grid[int(np.argmin(sse))]
+        scanned.update({names[0]: float(np.clip(tau, 0.0, model.parameters[names[0]].upper)),
+                        names[1]: float(np.clip(tau2, 0.0, model.parameters[names[1]].upper))})
+    return model, [start, scanned]
+
+
 def _mains_starts(split, base, effect, model):
     return model, mains_starts(model, effect_starts(model, effect.name, base.values)[0], split.noise,
                                split.fit_mask, effect)
@@ -219,7 +266,7 @@ def _mains_starts(split, base, effect, model):
 STRATEGIES = {"local": _local_starts, "other_curve": _other_curve_starts, "staged_pinning": _staged_pinning_starts,
               "with_hysteresis": _with_hysteresis_starts, "quadratic_outputs": _quadratic_output_starts,
               "linear_sensor": _linear_sensor_starts, "linear_sensor_scan": _linear_sensor_scan_starts,
-              "mains": _mains_starts}
+              "mains": _mains_starts, "sensor_dynamics_scan": _sensor_dynamics_scan_starts}
 
 
 def fit_candidate(split: Split, base: FitResult, name: str) -> FitResult:

@@ -27,7 +27,10 @@ the base model when those parameters vanish:
                                 ``beta_k``, ``beta_c`` (1/K): the pinning and the reversibility
                                 move with it too, ``k(T) = k*(1 - beta_k*(T - T_amb))``,
                                 ``c(T) = c*(1 - beta_c*(T - T_amb))`` (today's law at 0)
-``sensor_lag``                  ``tau_m``, ``tau_x`` (s): first-order sensor lags
+``sensor_lag``                  ``tau_m``, ``tau_x``, ``tau2_m``, ``tau2_x`` (s): each output
+                                sensor a second-order filter ``1/(1 + tau*s + tau2^2*s^2)``
+                                (natural frequency 1/(2*pi*tau2), damping ratio tau/(2*tau2));
+                                tau2 = 0 is the first-order lag
 ``quadratic_magnetostriction``  ``zeta_q``: forcing ``zetahat*(M-M0) + zeta_q*(M-M0)^2``
                                 (the M^2 law of (12) about a bias M0 gives zeta_q = zetahat/(2*M0);
                                 a pure M^2 law has zetahat -> 0 with zeta_q finite)
@@ -239,11 +242,12 @@ class Model:
         out = {}
         time = self.recording.time
         if "magnetization" in self.channels:
-            out["magnetization"] = self._sensor_terms("magnetization", values, _lag(
-                time, magnetization, values.get("tau_m", 0.0), self._classes))
+            out["magnetization"] = self._sensor_terms("magnetization", values, sensor_dynamics(
+                time, magnetization, values.get("tau_m", 0.0), values.get("tau2_m", 0.0), self._classes))
         if "displacement" in self.channels:
-            out["displacement"] = self._sensor_terms("displacement", values, _lag(
-                time, self.displacement(values, magnetization), values.get("tau_x", 0.0), self._classes))
+            out["displacement"] = self._sensor_terms("displacement", values, sensor_dynamics(
+                time, self.displacement(values, magnetization), values.get("tau_x", 0.0), values.get("tau2_x", 0.0),
+                self._classes))
         return out
 
     def _sensor_terms(self, channel, values, signal):
@@ -331,14 +335,15 @@ def gain_drift_factor(fraction, linear, settling, tau):
     return 1.0 + linear * fraction + settling * -np.expm1(-fraction / tau)
 
 
-def input_dynamics(time, field, tau, delay, classes=None):
+def input_dynamics(time, field, tau, delay, tau2=0.0, classes=None):
     """The ``input_lag`` family: the field (A/m) in the material for the recorded ``field``, delayed by
-    ``delay`` (s; the first sample held before the record starts) and then lagged by ``tau`` (s),
-    ``tau*H' = H_rec(t - delay) - H``, starting settled; the recorded field itself when both vanish."""
-    if tau == 0.0 and delay == 0.0:
+    ``delay`` (s; the first sample held before the record starts) and then filtered by
+    ``1/(1 + tau*s + tau2^2*s^2)`` (:func:`sensor_dynamics`; tau2 = 0: the first-order lag
+    ``tau*H' = H_rec(t - delay) - H``), starting settled; the recorded field itself when all vanish."""
+    if tau == 0.0 and delay == 0.0 and tau2 == 0.0:
         return field
     out = np.interp(time - delay, time, field) if delay > 0.0 else field
-    return np.ascontiguousarray(_lag(time, out, tau, classes))
+    return np.ascontiguousarray(sensor_dynamics(time, out, tau, tau2, classes))
 
 
 def channel_range(signal):
@@ -375,8 +380,16 @@ def _fem_tip_displacement(time, forcing, gain, values, classes):
     return step_lti(drive, index, phis, gamma0s, gamma1s, output, state0)
 
 
-def _lag(time, signal, tau, classes):
-    """First-order sensor lag ``tau*y' = u - y`` (tau in s), starting settled."""
+def sensor_dynamics(time, signal, tau, tau2=0.0, classes=None):
+    """A second-order low-pass ``tau2^2*y'' + tau*y' + y = u`` (tau, tau2 in s), starting settled: a
+    resonance at f_n = 1/(2*pi*tau2) Hz with damping ratio tau/(2*tau2) (a displacement probe or an
+    amplifier that rings); tau2 = 0 is the first-order lag ``tau*y' = u - y``, and the signal itself
+    when both vanish. Exact first-order-hold steps (:func:`~.kernels.lti_response`), so a resonance
+    near the Nyquist frequency is stepped without a stiffness limit."""
+    if tau2 > 0.0:
+        inverse = 1.0 / tau2 ** 2
+        return lti_response(time, signal, [[0.0, 1.0], [-inverse, -tau * inverse]], [0.0, inverse], [1.0, 0.0],
+                            start="steady", classes=classes)
     if tau <= 0.0:
         return signal
     return lti_response(time, signal, [[-1.0 / tau]], [1.0 / tau], [1.0], start="steady", classes=classes)

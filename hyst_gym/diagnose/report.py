@@ -19,7 +19,8 @@ from .model import FEM_ROD_NAMES, channel_range, mapped_field, relative_stiffnes
 __all__ = ["EFFECT_WORDS", "UNITS", "explain", "physical_params", "record_temperature_rise", "slot_shapes",
            "temperature_rise_trace", "thermal_change_words", "write_json", "write_plots"]
 UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "heating_exponent": "", "tau_th": "s", "beta_Ms": "1/K",
-         "tau_m": "s", "tau_x": "s", "zeta_q": "m/s^2 per (A/m)^2", "f2": "Hz", "damping2": "", "g2": "",
+         "tau_m": "s", "tau_x": "s", "tau2_m": "s", "tau2_x": "s", "tau2_in": "s", "zeta_q": "m/s^2 per (A/m)^2",
+         "f2": "Hz", "damping2": "", "g2": "",
          "delta_e": "", "delta_e_linear": "", "chi_r": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "", "alpha": "",
          "Y": "Pa", "ML": "kg", "cD": "Pa s", "cL": "N s/m", "khat": "1/s^2", "chat": "1/s"}
 

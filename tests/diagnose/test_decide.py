@@ -59,10 +59,16 @@ def test_tie_is_a_paired_test_against_the_noise_when_the_best_explains_the_recor
     throughout = _Candidate("rod_dynamics", residual=_NOISE + 0.6)
     assert throughout.heldout_rmse < 1.2 * best.heldout_rmse
     assert not tied_with(throughout, best)
-    decision = decide([best, throughout, _Candidate("field_bias", 9.0)], 10.0, ("displacement",))
+    # a runner-up of a slot the registry does not list as confusable with the winner (a stiffness law beside a
+    # sensor lag) nearly matches the winner's reduction: named, but with a small margin
+    unlisted = _Candidate("delta_e", residual=_NOISE + 0.6)
+    decision = decide([best, unlisted, _Candidate("field_bias", 9.0)], 10.0, ("displacement",))
     assert decision.verdict == "sensor_lag"
-    # the runner-up nearly matches the winner's reduction: named, but with a small margin
     assert decision.confidence < 0.1
+    # the same runner-up of a listed slot (a second rod mode and a sensor lag bend a displacement record alike)
+    # reaches 90 % of the winner's reduction: a tie (confusable_ties), whatever the paired test says
+    decision = decide([best, throughout, _Candidate("field_bias", 9.0)], 10.0, ("displacement",))
+    assert decision.verdict == "ambiguous" and {c.effect for c in decision.tied} == {"sensor_lag", "rod_dynamics"}
 
 
 def test_predictions_that_differ_immaterially_tie_however_long_the_record():
@@ -293,3 +299,56 @@ def test_unidentified_directions_agree_with_the_fits_own_uncertainties():
     fit_mask[:report.split_index] = True
     again = unidentified_directions(base, report.noise, fit_mask)
     assert again[0]["sigma"] == pytest.approx(largest, rel=1e-9)   # deterministic
+
+
+def _partial(effect, heldout_rmse, plausible=True):
+    """A partial explanation that misses by ``heldout_rmse`` noise units, its residual the shared noise scaled:
+    two such candidates differ everywhere by the ratio of their sizes, so the paired test separates them."""
+    return _Candidate(effect, residual=heldout_rmse * _NOISE / np.sqrt(np.mean(_NOISE ** 2)), plausible=plausible)
+
+
+def test_a_confusable_family_of_another_slot_within_the_tie_share_makes_it_ambiguous():
+    """Heating (an Ms drift) and a sensor's gain drift are the same record with magnetization alone: a gain drift
+    that reaches 93 % of the heating's held-out reduction ties with it though the paired test prefers the heating
+    (it misses a little less everywhere), and the advice names the measurement that separates them."""
+    from hyst_gym.diagnose.decide import CONFUSABLE_TIE_SHARE, tied_with
+
+    best, runner = _partial("thermal_drift", 3.0), _partial("sensor_gain_drift", 3.5)
+    assert not tied_with(runner, best)
+    assert (10.0 - 3.5) / (10.0 - 3.0) >= CONFUSABLE_TIE_SHARE
+    decision = decide([best, runner], 10.0, ("magnetization",))
+    assert decision.verdict == "ambiguous"
+    assert {c.effect for c in decision.tied} == {"thermal_drift", "sensor_gain_drift"}
+    assert "displacement beside the magnetization" in decision.advice
+    assert decision.confidence < 0.5
+
+
+def test_no_tie_below_the_share_for_an_unregistered_pair_or_an_implausible_partner():
+    """The same winner is named when the gain drift reaches only 80 % of its reduction; when the near runner-up is
+    of a slot the registry does not list as confusable with it (eddy currents) or was not plausible, the name
+    stands, at a confidence below 0.1 (its margin over the runner-up)."""
+    best = _partial("thermal_drift", 3.0)
+    far = decide([best, _partial("sensor_gain_drift", 4.4)], 10.0, ("magnetization",))
+    assert far.verdict == "thermal_drift"
+    unregistered = decide([best, _partial("eddy_current", 3.5)], 10.0, ("magnetization",))
+    assert unregistered.verdict == "thermal_drift" and unregistered.confidence < 0.1
+    implausible = decide([best, _partial("sensor_gain_drift", 3.5, plausible=False)], 10.0, ("magnetization",))
+    assert implausible.verdict == "thermal_drift" and implausible.confidence < 0.1
+
+
+def test_a_winner_within_the_noise_is_not_tied_with_a_confusable_runner_up_that_is_not():
+    """An input lag that brings the held-out block to the noise level (1.0) and a sensor lag that leaves 1.6 noise
+    units: 94 % of the reduction from 10, but the record separates them (the loop's nonlinearity makes the order
+    of lag and loop matter), so the input lag is named; with the sensor lag within the noise too, they tie."""
+    best = _partial("input_lag", 1.0)
+    separated = decide([best, _partial("sensor_lag", 1.6)], 10.0, ("magnetization",))
+    assert separated.verdict == "input_lag" and separated.confidence < 0.1
+    both_within = decide([best, _partial("sensor_lag", 1.4)], 10.0, ("magnetization",))
+    assert both_within.verdict == "ambiguous" and "Hall probe" in both_within.advice
+
+
+def test_a_slot_is_the_slot_without_its_form():
+    from hyst_gym.diagnose.decide import slot_of
+
+    assert slot_of("sensor_map") == slot_of("sensor_gain_drift") == "sensor static map"
+    assert slot_of("field_bias") == slot_of("input_map") != slot_of("input_lag")
