@@ -22,20 +22,25 @@ from .core import ESTIMATION, EXCITATION, IDENTIFICATION, INFO_KEYS, BatchSimula
 from .single import RENDER_MODES
 
 
-def seed_sub_envs(env: VectorEnv, seed) -> None:
-    """Give the sub-envs of ``env`` (a vector env with ``num_envs`` and a :class:`~.core.BatchSimulator` ``sim``)
-    their generators for a reset with ``seed``: None (each keeps its own, a new one where it has none), an int
-    (sub-env i gets ``seed + i``, and ``env``'s own generator ``seed``, as ``SyncVectorEnv``) or a list of
-    ``num_envs`` ints/None."""
+def sub_env_seeds(env: VectorEnv, seed) -> list:
+    """The seeds of the sub-envs of ``env`` (a vector env with ``num_envs``) for a reset with ``seed``: None
+    (None each: a sub-env keeps its generator), an int (sub-env i gets ``seed + i``, and ``env``'s own generator
+    ``seed``, as ``SyncVectorEnv``) or a list of ``num_envs`` ints/None."""
     if seed is None:
-        seeds = [None] * env.num_envs
-    elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-        seeds = [int(seed) + i for i in range(env.num_envs)]
+        return [None] * env.num_envs
+    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
         VectorEnv.reset(env, seed=int(seed))
-    else:
-        seeds = list(seed)
-        if len(seeds) != env.num_envs:
-            raise ValueError(f"reset: seed list has {len(seeds)} entries for {env.num_envs} sub-envs")
+        return [int(seed) + i for i in range(env.num_envs)]
+    seeds = list(seed)
+    if len(seeds) != env.num_envs:
+        raise ValueError(f"reset: seed list has {len(seeds)} entries for {env.num_envs} sub-envs")
+    return seeds
+
+
+def seed_sub_envs(env: VectorEnv, seed) -> None:
+    """Give the sub-envs of ``env`` (a vector env with a :class:`~.core.BatchSimulator` ``sim``) their generators
+    for a reset with ``seed`` (:func:`sub_env_seeds`; a sub-env without one gets a fresh one)."""
+    seeds = sub_env_seeds(env, seed)
     for i, sub_seed in enumerate(seeds):
         if sub_seed is not None or env.sim.episode_rngs[i] is None:
             env.sim.set_generator(i, seeding.np_random(sub_seed)[0])
@@ -192,4 +197,4 @@ class IdentificationVectorEnv(HystVectorEnv):
 
 
 __all__ = ["EstimationVectorEnv", "ExcitationVectorEnv", "HystVectorEnv", "IdentificationVectorEnv",
-           "RENDER_MODES", "seed_sub_envs"]
+           "RENDER_MODES", "seed_sub_envs", "sub_env_seeds"]
