@@ -16,7 +16,8 @@ def test_markdown_states_the_three_runs_the_load_and_the_compile_notice():
     text = markdown(result(1.94, 0.66))
     assert "**1.9 s** the first time" in text and "**0.7 s** afterwards" in text
     assert "1-min load up to 1.0" in text and "\"hyst-gym: compiling kernels\"" in text
-    assert "first episode (1000 steps) ended 3.0 s after the start (1.10 ms per step, against 0.040 ms compiled)" in text
+    assert "first episode (1000 steps) ended 3.0 s after the start (1.10 ms per step, against 0.040 ms " \
+           "compiled)" in text
     assert "compiled them 17 s after the start" in text and "the first step takes 12.4 s" in text
     assert "had not finished" in markdown(result(1.94, 0.66, compiled=False))
 
