@@ -25,6 +25,7 @@ teaches the estimator faster but moves the output off the reference: probing cos
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from gymnasium.vector import AutoresetMode
@@ -100,9 +101,20 @@ class MillingReference:
         return self.output(t) + self.slope(t) / decay_rate
 
 
+class ControllerModel(NamedTuple):
+    """The constants of the controller's own copy of model (6) (named state for the compiled controller):
+    ``alpha`` (dimensionless), ``Ms`` (A/m), ``c`` (dimensionless), ``kind`` (the anhysteretic curve's code),
+    ``max_field_step`` (A/m, the model's substep)."""
+
+    alpha: float
+    Ms: float
+    c: float
+    kind: int
+    max_field_step: float
+
+
 @njit(cache=True, error_model="numpy")
-def inverse_fields(field, model_m, target_m, a_hat, k, alpha, Ms, c, kind, max_field_step, max_change, field_limit,
-                   out):
+def inverse_fields(field, model_m, target_m, a_hat, k, model, max_change, field_limit, out):
     """The inverse-compensation controller: per sub-env b, the field (A/m) that moves model (6) with
     ``a_hat[b]`` from (``field[b]``, ``model_m[b]``) to ``target_m[b]`` (A/m), by :data:`NEWTON_STEPS` Newton
     steps on the model's own M(H) (each evaluated by the model's substeps), kept within the slew
@@ -113,12 +125,14 @@ def inverse_fields(field, model_m, target_m, a_hat, k, alpha, Ms, c, kind, max_f
         high = min(start + max_change, field_limit)
         trial = start
         for _ in range(NEWTON_STEPS):
-            m_trial, _ = advance_one(model_m[b], start, trial, a_hat[b], k[b], alpha, Ms, c, kind, max_field_step)
+            m_trial, _ = advance_one(model_m[b], start, trial, a_hat[b], k[b], model.alpha, model.Ms, model.c,
+                                     model.kind, model.max_field_step)
             gap = target_m[b] - m_trial
             if gap == 0.0:
                 break
             direction = 1.0 if trial > start else (-1.0 if trial < start else (1.0 if gap > 0.0 else -1.0))
-            slope = magnetization_slope(trial, m_trial, direction, a_hat[b], k[b], alpha, Ms, c, kind)
+            slope = magnetization_slope(trial, m_trial, direction, a_hat[b], k[b], model.alpha, model.Ms, model.c,
+                                        model.kind)
             if not slope > 0.0:
                 break
             trial = min(max(trial + gap / slope, low), high)
@@ -126,11 +140,11 @@ def inverse_fields(field, model_m, target_m, a_hat, k, alpha, Ms, c, kind, max_f
 
 
 @njit(cache=True, error_model="numpy")
-def advance_models(model_m, field_from, field_to, a_hat, k, alpha, Ms, c, kind, max_field_step):
+def advance_models(model_m, field_from, field_to, a_hat, k, model):
     """The controller's model (6) with ``a_hat`` moved along the applied field, in place."""
     for b in range(model_m.shape[0]):
-        model_m[b], _ = advance_one(model_m[b], field_from[b], field_to[b], a_hat[b], k[b], alpha, Ms, c, kind,
-                                    max_field_step)
+        model_m[b], _ = advance_one(model_m[b], field_from[b], field_to[b], a_hat[b], k[b], model.alpha, model.Ms,
+                                    model.c, model.kind, model.max_field_step)
 
 
 #: the milling job's reference of ``hyst_gym/DualControl-v0``
@@ -156,7 +170,8 @@ class DualControlVectorEnv(TaskVectorEnv):
         self.sim = BatchSimulator(config, IDENTIFICATION, n, **self.spec_.simulator_priors())
         self.posterior = GridPosterior(config, [0], n, None, posterior_nodes)
         hyst = config.hysteresis
-        self._hyst = (hyst.alpha, hyst.Ms, hyst.c, hyst.kind, config.max_field_step)
+        self._controller_model = ControllerModel(float(hyst.alpha), float(hyst.Ms), float(hyst.c), int(hyst.kind),
+                                                 float(config.max_field_step))
         self._model_m = np.zeros(n)
         self._command_field = np.zeros(n)
         self._field_before = np.zeros(n)
@@ -212,8 +227,8 @@ class DualControlVectorEnv(TaskVectorEnv):
         self._controller_a[:] = a_hat
         t_next = (sim.steps + 1) * config.dt
         target = self.reference.magnetization(t_next, config.transducer.decay_rate) * config.hysteresis.Ms
-        alpha, Ms, c, kind, max_step = self._hyst
-        inverse_fields(sim.field, self._model_m, target, a_hat, sim._k, alpha, Ms, c, kind, max_step,
+        pinning = sim.pinning
+        inverse_fields(sim.field, self._model_m, target, a_hat, pinning, self._controller_model,
                        config.max_field_change, config.field_limit, self._command_field)
         probe = actions[:, 0] * config.field_limit
         command = np.clip((self._command_field + probe) / config.field_limit, -1.0, 1.0)
@@ -225,7 +240,7 @@ class DualControlVectorEnv(TaskVectorEnv):
         self._field_before[:] = sim.field
         _, terminated, truncated = sim.step_views(full, active=~resetting if resetting.any() else None)
         terminated, truncated = terminated.copy(), truncated.copy()
-        advance_models(self._model_m, self._field_before, sim.field, a_hat, sim._k, alpha, Ms, c, kind, max_step)
+        advance_models(self._model_m, self._field_before, sim.field, a_hat, pinning, self._controller_model)
         self._measured[:, 0] = sim.measured[:, 0] / sim.scales[0]
         self._reference_now[:] = self.reference.output(sim.steps * config.dt)
         true_output = (sim.state[:, sim.model.output_index] + sim.model.output_offset) / sim.scales[0]
@@ -327,4 +342,5 @@ class DualControlEnv(SingleOfVector):
         return self.vector.sim
 
 
-__all__ = ["CONTROLLER_ESTIMATES", "DualControlEnv", "DualControlVectorEnv", "MillingReference", "inverse_fields"]
+__all__ = ["CONTROLLER_ESTIMATES", "ControllerModel", "DualControlEnv", "DualControlVectorEnv", "MillingReference",
+           "inverse_fields"]
