@@ -40,8 +40,8 @@ MAINS_NAMES = {ch: tuple(f"{term}_{ch[0]}" for term in ("mains_cos", "mains_sin"
                for ch in ("magnetization", "displacement")}
 #: The input map's coefficients in the order :func:`.model.mapped_field` takes them.
 INPUT_MAP_NAMES = ("input_quadratic", "input_cubic", "input_saturation", "input_saturation_negative")
-#: The input dynamics' lag, delay and second time constant (s), in the order :func:`.model.input_dynamics` takes
-#: them: the filter 1/(1 + tau_in*s + tau2_in^2*s^2) after the delay (tau2_in = 0: a first-order lag).
+#: The input dynamics' lag, delay and pole time constant (s), in the order :func:`.model.input_dynamics` takes
+#: them: after the delay a lag 1/(1 + tau_in*s) and a Butterworth pair at 1/(2*pi*tau2_in) (tau2_in = 0: none).
 INPUT_DYNAMICS_NAMES = ("tau_in", "delay_in", "tau2_in")
 #: The sensor dynamics' time constants per channel (s): 1/(1 + tau*s + tau2^2*s^2) (:func:`.model.sensor_dynamics`).
 SENSOR_DYNAMICS_NAMES = {"magnetization": ("tau_m", "tau2_m"), "displacement": ("tau_x", "tau2_x")}
@@ -212,7 +212,7 @@ def _input_map_parameters(recording, structure, base_values):
 
 def _input_dynamics_parameters(recording, structure, base_values):
     # a coil's L/R or an amplifier's bandwidth: a lag and a transport delay of up to a few % of the record
-    # and a second-order filter (an amplifier's two poles; tau2_in = 0: the first-order lag)
+    # and a Butterworth pair of poles (an amplifier's bandwidth; tau2_in = 0: the first-order lag)
     frame = Frame.of(recording)
     return {"tau_in": Parameter("tau_in", frame.dt, 0.0, 0.05 * frame.duration, "s", scale=frame.dt),
             "delay_in": Parameter("delay_in", 0.0, 0.0, 0.02 * frame.duration, "s", scale=frame.dt),
@@ -318,10 +318,10 @@ def _input_map_starts(model, start):
 
 def _input_dynamics_starts(model, start):
     # from a lag of one step and from a delay of two (a delay and a lag bend the loop alike at low rates), and
-    # from two poles (damping ratio 0.7 at 1/(2*pi*2*dt)): the fit cannot leave tau2_in = 0 by itself, where the
-    # field's dependence on tau2_in is flat (it enters squared)
+    # from a pair of poles at 1/(2*pi*2*dt): the fit cannot leave tau2_in = 0 by itself, where the field's
+    # dependence on tau2_in is flat (it enters squared)
     dt = model.parameters["tau_in"].scale
-    return [start, dict(start, tau_in=0.1 * dt, delay_in=2.0 * dt), dict(start, tau_in=2.8 * dt, tau2_in=2.0 * dt)]
+    return [start, dict(start, tau_in=0.1 * dt, delay_in=2.0 * dt), dict(start, tau_in=0.1 * dt, tau2_in=2.0 * dt)]
 
 
 def _curve_mixture_starts(model, start):
@@ -605,8 +605,8 @@ _REGISTERED = (
     Effect(
         name="input_lag", slot="input dynamics (recorded to true field): a lag and a delay",
         words="input dynamics: the field in the material lags the recorded one (a coil's L/R or an amplifier's "
-              "bandwidth: a delay delay_in, then a first-order lag tau_in or two poles "
-              "1/(1 + tau_in*s + tau2_in^2*s^2))",
+              "bandwidth: a delay delay_in, a first-order lag tau_in and a Butterworth pair of poles at "
+              "1/(2*pi*tau2_in))",
         parameter_names=INPUT_DYNAMICS_NAMES, parameters=_input_dynamics_parameters, identified_by=BestDetermined(),
         applies=_always, rate_dependent=True, rescue=("tau_in",), starts=_input_dynamics_starts,
         # no lag or no delay (0) is a member of the family (a pure delay, a pure lag), not a wall

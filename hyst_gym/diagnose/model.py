@@ -335,15 +335,25 @@ def gain_drift_factor(fraction, linear, settling, tau):
     return 1.0 + linear * fraction + settling * -np.expm1(-fraction / tau)
 
 
+#: Damping ratio of the input dynamics' pair of poles: a Butterworth pair (an amplifier's bandwidth). Why fixed:
+#: with a free damping the fit could drive the pair toward no damping, where the field rings through the whole
+#: record and the hysteresis simulation's field substeps multiply (a fit that ran for tens of minutes).
+INPUT_POLE_DAMPING = 1.0 / np.sqrt(2.0)
+
+
 def input_dynamics(time, field, tau, delay, tau2=0.0, classes=None):
     """The ``input_lag`` family: the field (A/m) in the material for the recorded ``field``, delayed by
-    ``delay`` (s; the first sample held before the record starts) and then filtered by
-    ``1/(1 + tau*s + tau2^2*s^2)`` (:func:`sensor_dynamics`; tau2 = 0: the first-order lag
-    ``tau*H' = H_rec(t - delay) - H``), starting settled; the recorded field itself when all vanish."""
+    ``delay`` (s; the first sample held before the record starts), then lagged by ``tau`` (s),
+    ``tau*H' = H_rec(t - delay) - H``, and filtered by a Butterworth pair of poles at 1/(2*pi*tau2) Hz
+    (:data:`INPUT_POLE_DAMPING`; :func:`sensor_dynamics`), starting settled; tau2 = 0 is the first-order lag
+    and the recorded field itself when all vanish."""
     if tau == 0.0 and delay == 0.0 and tau2 == 0.0:
         return field
     out = np.interp(time - delay, time, field) if delay > 0.0 else field
-    return np.ascontiguousarray(sensor_dynamics(time, out, tau, tau2, classes))
+    out = sensor_dynamics(time, out, tau, 0.0, classes)
+    if tau2 > 0.0:
+        out = sensor_dynamics(time, out, 2.0 * INPUT_POLE_DAMPING * tau2, tau2, classes)
+    return np.ascontiguousarray(out)
 
 
 def channel_range(signal):

@@ -9,7 +9,7 @@ from scipy import signal as scipy_signal
 
 from hyst_gym.diagnose import Recording, diagnose, make_recording
 from hyst_gym.diagnose.kernels import AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, simulate_members
-from hyst_gym.diagnose.model import input_dynamics, sensor_dynamics
+from hyst_gym.diagnose.model import INPUT_POLE_DAMPING, input_dynamics, sensor_dynamics
 
 MATERIAL = dict(a=6000.0, k=1500.0, alpha=-0.01, Ms=8e5, c=0.2, H0=0.0, k_e=0.0, heating=0.0, tau_th=1.0,
                 beta_Ms=0.0, chi_r=0.0, heating_exponent=2.0)
@@ -48,9 +48,11 @@ def test_the_first_order_lag_and_the_identity_are_members_of_the_family():
     # a very fast second pole is the first-order lag again
     np.testing.assert_allclose(sensor_dynamics(time, drive, tau, 1e-3 * tau), expected, rtol=0,
                                atol=1e-3 * np.ptp(drive))
-    # the input side: the same filter after the delay
+    # the input side: the lag, then a Butterworth pair of poles (damping ratio 1/sqrt(2): no ringing)
+    lagged = sensor_dynamics(time, drive, tau)
     np.testing.assert_array_equal(input_dynamics(time, drive, tau, 0.0, 2e-4),
-                                  sensor_dynamics(time, drive, tau, 2e-4))
+                                  sensor_dynamics(time, lagged, 2 * INPUT_POLE_DAMPING * 2e-4, 2e-4))
+    np.testing.assert_array_equal(input_dynamics(time, drive, tau, 0.0, 0.0), sensor_dynamics(time, drive, tau))
 
 
 def _ringing_record(seed, frequency, damping, samples=3000, oversample=8, noise=2e-4):
