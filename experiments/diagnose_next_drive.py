@@ -323,10 +323,14 @@ def page_section(payload) -> str:
     excludes = paired["ci95"][0] > 0
     planned = [c.label for c in DEFAULT_CASES]
     labels = [StudyCase(r["generator"], r["effect"], r["seed"], r["channels"]).label for r in rows]
-    scope = (f"the first {len(rows)} of the {len(planned)} default cases, in their order (the run was cut short "
-             "to fit the machine's time)" if labels == planned[:len(rows)] and len(rows) < len(planned) else
+    scope = (f"the first {len(rows)} of the {len(planned)} default cases, in their order: the run was cut short "
+             "to fit the machine's time" if labels == planned[:len(rows)] and len(rows) < len(planned) else
              "the default cases" if labels == planned else "a chosen set of cases")
-    lines = [f"{len(rows)} hidden systems ({scope}) from the three generators ({payload['samples']} samples per "
+    present = [g for g in GENERATORS if any(r["generator"] == g for r in rows)]
+    missing = [g for g in GENERATORS if g not in present]
+    source = " and ".join(present) + (f" generators (none yet from {', '.join(missing)})" if missing else
+                                      " generators")
+    lines = [f"{len(rows)} hidden systems from the {source} ({scope}; {payload['samples']} samples per "
              "record), "
              "each replayed under the designed drive and, as the control, under its first drive again, each "
              "follow-up with a new noise draw; then the joint diagnosis of the two records. Right: the verdict "
