@@ -235,15 +235,16 @@ def main(argv=None):
 
 
 def before_after(before_rows, after_rows) -> list[str]:
-    """Markdown lines: per case, on the recordings (case, channels, seed) that both row sets contain,
-    right and wrong names before -> after, and how many verdicts changed."""
+    """Markdown lines: per case and channel set, on the recordings (case, channels, seed) that both row sets
+    contain, right and wrong names before -> after, and how many verdicts changed."""
     key = lambda r: (r["case"], r["channels"], int(r["seed"]))  # noqa: E731
     earlier = {key(r): r for r in before_rows}
     pairs = [(earlier[key(r)], r) for r in after_rows if key(r) in earlier]
-    lines = ["| case | recordings | right before → after | right or ambiguous with truth before → after "
+    lines = ["| case / channels | recordings | right before → after | right or ambiguous with truth before → after "
              "| wrong names before → after | verdicts changed |", "|---|---|---|---|---|---|"]
-    for case in sorted({a["case"] for _, a in pairs}) + ["all"]:
-        group = [(b, a) for b, a in pairs if case in ("all", a["case"])]
+    groups = sorted({f"{a['case']}/{a['channels']}" for _, a in pairs}) + ["all"]
+    for case in groups:
+        group = [(b, a) for b, a in pairs if case in ("all", f"{a['case']}/{a['channels']}")]
         # both scored by today's yardstick (outcome() reads the case's right verdicts now)
         scored = [(outcome(b["case"], b["verdict"], b.get("tied") or []),
                    outcome(a["case"], a["verdict"], a.get("tied") or [])) for b, a in group]
@@ -260,7 +261,8 @@ def before_after(before_rows, after_rows) -> list[str]:
 
 #: the study markdown's sections that the documentation page shows; the others (per case and
 #: channel set, per form, every recording, before/after) stay in ``other_forms.md``
-PAGE_SECTIONS = ("Total", "Per channel set", "Per case", "Reliability of `confidence`")
+PAGE_SECTIONS = ("Total", "Per channel set", "Per case", "Reliability of `confidence`",
+                 "Before and after (the same recordings)")
 
 
 def page_section(text: str) -> str:
@@ -269,8 +271,8 @@ def page_section(text: str) -> str:
     body = parts[0].split("\n", 2)[2]   # drop the title line and the blank line after it
     kept = [p for p in parts[1:] if p.split("\n", 1)[0].strip() in PAGE_SECTIONS]
     return ("\n### ".join([body, *kept]).rstrip("\n")
-            + "\n\nPer case and channel set, per form, every recording, and the tool's earlier verdicts on the "
-            "same recordings: `experiments/results/diagnose/other_forms.md`.\n")
+            + "\n\nPer case and channel set, per form, and every recording: "
+            "`experiments/results/diagnose/other_forms.md`.\n")
 
 
 def study_text(payload, before=None) -> str:
