@@ -26,7 +26,7 @@ from collections import namedtuple
 
 from ..estimation._kernels import (BankParams, BankState, EstimatorState, advance_bank, estimator_step,
                                   interpolate_bank)
-from ..physics.background_compile import BACKGROUND, PYTHON, background_kernel, compile_mode
+from ..physics.background_compile import BACKGROUND, PYTHON, background_kernel, effective_mode
 from ..physics.hysteresis import advance_each, advance_shared
 from ..physics.linear_system import lti_step
 from ..physics.thermal import a_law_kernel, mean_square_linear_kernel, temperature_step_kernel
@@ -507,7 +507,7 @@ def announce_compilation(kernels) -> None:
     it). A print, not a warning: it is news, not a problem, and must show even where warnings
     are filtered. Nothing in the ``python`` mode, which compiles nothing."""
     global _compile_notice_shown
-    mode = compile_mode()
+    mode = effective_mode()
     if _compile_notice_shown or mode == PYTHON or all(is_cached(kernel) for kernel in kernels):
         return
     _compile_notice_shown = True

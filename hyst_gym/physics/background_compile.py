@@ -31,6 +31,7 @@ import importlib
 import json
 import os
 import pickle
+import re
 import select
 import subprocess
 import sys
@@ -55,6 +56,8 @@ PATH_VARIABLE = "HYST_GYM_COMPILE_PATH"
 #: a helper with nothing to compile for this long (s) ends; the next request starts another
 HELPER_IDLE_SECONDS = 60.0
 #: the helper's program: the parent's sys.path first, then :func:`serve`
+#: an answer line of the helper: ``done N`` or ``failed N why``
+ANSWER_PATTERN = re.compile(r"(done|failed) (\d+)(?: (.*))?")
 HELPER_CODE = ("import json, os, sys; sys.path[:0] = json.loads(os.environ['HYST_GYM_COMPILE_PATH']); "
                "from hyst_gym.physics.background_compile import serve; serve()")
 
@@ -64,6 +67,17 @@ def compile_mode() -> str:
     mode = os.environ.get(MODE_VARIABLE, BACKGROUND) or BACKGROUND
     if mode not in MODES:
         raise ValueError(f"{MODE_VARIABLE}={mode!r} is not one of {', '.join(MODES)}")
+    return mode
+
+
+def effective_mode() -> str:
+    """What a background kernel's first call does here: :func:`compile_mode`, except that ``background``
+    compiles in the foreground where the twin cannot stand in for the compiled code: no POSIX pipes and
+    sessions for the helper (Windows), numba's JIT switched off, or Intel's SVML math in use (its
+    vectorized functions can differ from the C library's, which the twin calls, in the last bit)."""
+    mode = compile_mode()
+    if mode == BACKGROUND and (numba_config.DISABLE_JIT or os.name != "posix" or numba_config.USING_SVML):
+        return FOREGROUND
     return mode
 
 
@@ -106,8 +120,8 @@ class BackgroundDispatcher(CPUDispatcher):
     overload never reach Python, so the compiled speed is numba's own."""
 
     def _compile_for_args(self, *args, **kws):
-        mode = compile_mode()
-        if mode == FOREGROUND or kws or numba_config.DISABLE_JIT or os.name != "posix":
+        mode = effective_mode()
+        if mode == FOREGROUND or kws:
             return super()._compile_for_args(*args, **kws)
         if mode == PYTHON:
             return self._twin_call
@@ -191,6 +205,7 @@ class CompileHelper:
         self.process = None
         self.requests: dict = {}  # (module, qualname, signature) -> request number
         self.answers: dict = {}  # request number -> DONE or why it failed
+        self._numbers = 0  # request numbers are never reused, so an answer always names its own request
         self._unread = b""
         self._lock = threading.Lock()  # threads of one process share the helper and its pipes
 
@@ -207,9 +222,16 @@ class CompileHelper:
         self._unread = b""
         return None
 
+    def _all_answered(self) -> bool:
+        return all(number in self.answers for number in self.requests.values())
+
     def _idle_and_ended(self) -> bool:
-        """Whether the helper has ended by itself, idle (every request answered, status 0)."""
-        return self.process.poll() == 0 and len(self.answers) == len(self.requests)
+        """Whether the helper has ended by itself, idle (every request answered, status 0). Its last
+        answers are read first: it may have answered, idled and ended since the last look."""
+        if self.process.poll() != 0:
+            return False
+        self._read_answers()
+        return self._all_answered()
 
     def request(self, dispatcher, signature) -> str | None:
         """Ask for ``dispatcher`` at ``signature`` (once). :data:`PENDING` while the helper works on
@@ -224,12 +246,14 @@ class CompileHelper:
                 problem = self._start()
                 if problem:
                     return problem
-            number = len(self.requests)
+            number = self._numbers
+            self._numbers += 1
             self.requests[key] = number
             try:
                 self.process.stdin.write(base64.b64encode(pickle.dumps((number, *key))) + b"\n")
                 self.process.stdin.flush()
             except OSError:
+                del self.requests[key]  # not sent: the next call asks a new helper
                 return "the background compile process has ended"
         self._read_answers()
         number = self.requests[key]
@@ -247,20 +271,22 @@ class CompileHelper:
             return
         *lines, self._unread = self._unread.split(b"\n")
         for line in lines:
-            verdict, _, rest = line.decode().partition(" ")
-            number, _, why = rest.partition(" ")
-            self.answers[int(number)] = DONE if verdict == "done" else why or "no reason given"
+            # only the helper's answers; anything else a library printed there is not ours to read
+            answer = ANSWER_PATTERN.fullmatch(line.decode(errors="replace"))
+            if answer:
+                verdict, number, why = answer.groups()
+                self.answers[int(number)] = DONE if verdict == "done" else why or "no reason given"
 
     def wait(self, timeout: float) -> bool:
         """Wait up to ``timeout`` s until every request is answered; whether they all are."""
         deadline = time.monotonic() + timeout
-        while self.process is not None and len(self.answers) < len(self.requests):
+        while self.process is not None and not self._all_answered():
             with self._lock:
                 self._read_answers()
             if self.process.poll() is not None or time.monotonic() > deadline:
                 break
             time.sleep(0.05)
-        return self.process is None or len(self.answers) == len(self.requests)
+        return self.process is None or self._all_answered()
 
 
 #: the helper of this interpreter, made on the first request. Module state because it is one per
@@ -286,6 +312,10 @@ def serve(idle_seconds: float = HELPER_IDLE_SECONDS) -> None:
     """The helper process: compile each requested kernel into numba's disk cache and answer, until
     stdin closes (the parent has exited) or ``idle_seconds`` pass without a request."""
     stdin, unread = sys.stdin.buffer.fileno(), b""
+    # the answers get their own copy of stdout; stdout itself goes to stderr, so that whatever the compile
+    # prints (numba's cache log, a library's warning) never reaches the parent as an answer
+    answers = os.fdopen(os.dup(sys.stdout.fileno()), "w")
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
     while True:
         if b"\n" not in unread:
             if not select.select([stdin], [], [], idle_seconds)[0]:
@@ -298,7 +328,7 @@ def serve(idle_seconds: float = HELPER_IDLE_SECONDS) -> None:
         line, unread = unread.split(b"\n", 1)
         answer = _compile_request(line)
         try:
-            print(answer, flush=True)
+            print(answer, file=answers, flush=True)
         except OSError:  # the parent has exited: go on compiling what it asked for, into the cache
             pass
 
