@@ -82,7 +82,8 @@ def test_unequal_amplifier_rails_are_named_as_the_input_map():
 
 
 def test_before_after_pairs_the_same_recordings():
-    """The study's before/after table counts only recordings in both runs, scored by today's right verdicts."""
+    """The study's before/after table (per case and channel set) counts only recordings in both runs, scored by
+    today's right verdicts."""
     from experiments.diagnose_other_forms import before_after
 
     def row(case, seed, verdict, channels="both", tied=()):
@@ -94,8 +95,8 @@ def test_before_after_pairs_the_same_recordings():
              row("saturating_amplifier", 0, "ambiguous", tied=("input_map", "sensor_map")),
              row("saturating_amplifier", 5, "input_map")]
     lines = before_after(before, after)
-    assert "| mains_pickup | 2 | 1 → 2 | 1 → 2 | 0 → 0 | 1 |" in lines
-    assert "| saturating_amplifier | 1 | 0 → 0 | 0 → 1 | 1 → 0 | 1 |" in lines
+    assert "| mains_pickup/both | 2 | 1 → 2 | 1 → 2 | 0 → 0 | 1 |" in lines
+    assert "| saturating_amplifier/both | 1 | 0 → 0 | 0 → 1 | 1 → 0 | 1 |" in lines
     assert lines[-1] == "| all | 3 | 1 → 2 | 1 → 3 | 1 → 0 | 2 |"
 
 
