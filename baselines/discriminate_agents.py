@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hyst_gym.physics.thermal import mean_square_linear
+from hyst_gym.physics.thermal import mean_square_linear, temperature_step
 
 from .agents import Agent
 
@@ -81,16 +81,15 @@ class GreedySeparation(Agent):
 
     def __init__(self, env, margin: float = 2.0, name: str | None = None):
         super().__init__()
-        from hyst_gym.envs.discriminate import advance_candidates
+        from hyst_gym.envs.discriminate import advance_candidates, candidate_a
 
         self.config = env.config
         self.margin = float(margin)
         self.name = name or f"greedy_separation_{margin:g}"
         self.reads_truth = False
         self._advance = advance_candidates
-        self._a_reference = np.array(env.candidates.a)
-        self._k = np.array(env.candidates.k)
-        self._params = env._params
+        self._candidate_a = candidate_a
+        self._models = env.models  # the candidates' models the task publishes
         names = env.observation_names
         self._temperature = names.index("temperature")
         self._posterior = [names.index(name) for name in names if name.startswith("p_")]
@@ -98,7 +97,7 @@ class GreedySeparation(Agent):
         self._decay = np.exp(-self.config.dt / thermal.time_constant)
         self._gain = thermal.thermal_resistance * thermal.power_per_square_field
         self._field = np.zeros(0)
-        self._models = np.zeros((0, 3))
+        self._m = np.zeros((0, 3))
         self._direction = np.zeros(0)
 
     def reset(self, seed=None):
@@ -119,7 +118,7 @@ class GreedySeparation(Agent):
         while np.any(h > 0):
             nxt = np.maximum(h - config.max_field_change, 0.0)
             offset = self._gain * mean_square_linear(h, nxt)
-            t = (temperature + offset) + (t - (temperature + offset)) * self._decay
+            t = temperature_step(t, temperature, temperature, offset, self._decay)
             peak = np.maximum(peak, t)
             h = nxt
         return peak
@@ -129,27 +128,26 @@ class GreedySeparation(Agent):
         n = observations.shape[0]
         start = np.asarray(episode_start, dtype=bool)
         if self._field.shape[0] != n:
-            self._field, self._models, self._direction = np.zeros(n), np.zeros((n, 3)), np.ones(n)
+            self._field, self._m, self._direction = np.zeros(n), np.zeros((n, 3)), np.ones(n)
             start = np.ones(n, dtype=bool)
-        self._field[start], self._models[start], self._direction[start] = 0.0, 0.0, 1.0
+        self._field[start], self._m[start], self._direction[start] = 0.0, 0.0, 1.0
         temperature = self._temperature_of(observations)
-        a = self._a_reference[None, :] * (temperature[:, None] / config.thermal.reference_temperature)
+        a = self._candidate_a(self._models, temperature, config.thermal)
         posterior = observations[:, self._posterior].astype(np.float64)
-        alpha, Ms, c, chi_r, kind, max_step = self._params
         best_score, best_field = np.full(n, -np.inf), self._field.copy()
         for move in MOVES:
             target = _slewed(self._field + self._direction * move * config.max_field_change, self._field, config)
             rising = np.abs(target) > np.abs(self._field)
             hot = self._braked_peak(temperature, target) >= config.temperature_limit - self.margin
-            models = self._models.copy()
-            self._advance(models, self._field, target, a, self._k, alpha, Ms, c, chi_r, kind, max_step)
+            models = self._m.copy()
+            self._advance(models, self._field, target, a, self._models)
             m = models / config.hysteresis.Ms
             score = sum(posterior[:, i] * posterior[:, j] * (m[:, i] - m[:, j]) ** 2 for i in range(3)
                         for j in range(i + 1, 3))
             score = np.where(rising & hot, -np.inf, score)
             better = score > best_score + 1e-15
             best_score, best_field = np.where(better, score, best_score), np.where(better, target, best_field)
-        self._advance(self._models, self._field, best_field, a, self._k, alpha, Ms, c, chi_r, kind, max_step)
+        self._advance(self._m, self._field, best_field, a, self._models)
         moved = best_field - self._field
         self._direction = np.where(moved != 0, np.sign(moved), self._direction)
         self._field = best_field

@@ -27,14 +27,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode
-from numba import njit
 
+from ..physics.background_compile import background_kernel
 from ..physics.hysteresis import advance_shared_small_loop
-from ..physics.thermal import mean_square_linear
+from ..physics.thermal import a_law, mean_square_linear, temperature_step
 from .core import TEMPERATURE_BOUND, TEMPERATURE_SCALE
 from .vector_single import SingleOfVector, TaskVectorEnv
 
@@ -68,17 +69,48 @@ class Candidates:
     recording_distance: tuple
 
 
-def _trajectory(config, a, k, chi_r, field):
+class CandidateModels(NamedTuple):
+    """The constants of the candidates' models (6) with the small-loop extension, one column per candidate
+    (named state for the compiled kernels): ``a_reference`` (A/m, a at the reference temperature; a follows T
+    by eq. (4)), ``k`` (A/m), ``alpha`` (dimensionless), ``Ms`` (A/m), ``c`` (dimensionless), ``chi_r``
+    (dimensionless, dM/dH units), each a float64 array; ``kind`` (the anhysteretic curve's code),
+    ``max_field_step`` (A/m, the models' substep)."""
+
+    a_reference: np.ndarray
+    k: np.ndarray
+    alpha: np.ndarray
+    Ms: np.ndarray
+    c: np.ndarray
+    chi_r: np.ndarray
+    kind: int
+    max_field_step: float
+
+
+def candidate_models(config, a_reference, k, chi_r) -> CandidateModels:
+    """:class:`CandidateModels` of ``config``'s hysteresis with the columns' ``a_reference``, ``k``, ``chi_r``."""
     hyst = config.hysteresis
+    a_reference, k, chi_r = (np.array(v, dtype=np.float64, ndmin=1) for v in (a_reference, k, chi_r))
+    count = a_reference.shape[0]
+    return CandidateModels(a_reference, k, np.full(count, float(hyst.alpha)), np.full(count, float(hyst.Ms)),
+                           np.full(count, float(hyst.c)), chi_r, int(hyst.kind), float(config.max_field_step))
+
+
+@background_kernel(error_model="numpy")
+def _trajectory_kernel(field, models, out):
+    """M/Ms of one candidate (``models`` of one column, a at ``a_reference``) at the end of each step of
+    ``field`` (A/m), from M = 0 and field 0; writes ``out``."""
     m = np.zeros(1)
-    out = np.empty(field.shape[0])
     previous = 0.0
-    for i, h in enumerate(field):
-        advance_shared_small_loop(m, previous, float(h), np.array([a]), np.array([k]), np.array([hyst.alpha]),
-                                  np.array([hyst.Ms]), np.array([hyst.c]), np.array([chi_r]), hyst.kind,
-                                  config.max_field_step)
-        out[i] = m[0] / hyst.Ms
-        previous = float(h)
+    for i in range(field.shape[0]):
+        advance_shared_small_loop(m, previous, field[i], models.a_reference, models.k, models.alpha, models.Ms,
+                                  models.c, models.chi_r, models.kind, models.max_field_step)
+        out[i] = m[0] / models.Ms[0]
+        previous = field[i]
+
+
+def _trajectory(config, a, k, chi_r, field):
+    out = np.empty(field.shape[0])
+    _trajectory_kernel(np.asarray(field, dtype=np.float64), candidate_models(config, a, k, chi_r), out)
     return out
 
 
@@ -116,13 +148,35 @@ def discriminate_candidates(config, chi_r: float = SMALL_LOOP_CHI_R) -> Candidat
                        distance(_trajectory(config, a_fit, hyst.k, 0.0, field))))
 
 
-@njit(cache=True, error_model="numpy")
-def advance_candidates(model_m, field_from, field_to, a, k, alpha, Ms, c, chi_r, kind, max_field_step):
-    """Every sub-env's candidate models (rows of ``model_m``, (n, 3), A/m; ``a`` (n, 3) at the sub-env's
-    temperature) moved along its applied field, in place."""
+@background_kernel(error_model="numpy")
+def advance_candidates(model_m, field_from, field_to, a, models):
+    """Every sub-env's candidate models (rows of ``model_m``, (n, 3), A/m; ``a`` (n, 3) A/m at the sub-env's
+    temperature, in place of ``models.a_reference``) moved along its applied field (A/m), in place."""
     for i in range(model_m.shape[0]):
-        advance_shared_small_loop(model_m[i], field_from[i], field_to[i], a[i], k, alpha, Ms, c, chi_r, kind,
-                                  max_field_step)
+        advance_shared_small_loop(model_m[i], field_from[i], field_to[i], a[i], models.k, models.alpha, models.Ms,
+                                  models.c, models.chi_r, models.kind, models.max_field_step)
+
+
+#: EnvConfig settings the discriminate task does not use (the coil cools towards its start temperature, the
+#: candidates' M/Ms is measured directly, the temperature always): (name, its value in a config)
+UNUSED_SETTINGS = (("ambient_drift_rate_range", lambda config: config.ambient_drift_rate_range),
+                   ("thermal.ambient_temperature", lambda config: config.thermal.ambient_temperature),
+                   ("transducer", lambda config: config.transducer),
+                   ("temperature_sensor", lambda config: config.temperature_sensor))
+
+
+def _reject_unused(task: str, config, preset) -> None:
+    """A one-line ValueError naming the first setting of :data:`UNUSED_SETTINGS` that ``config`` changes from the
+    task's ``preset`` (the task would ignore it)."""
+    for name, value in UNUSED_SETTINGS:
+        if value(config) != value(preset):
+            raise ValueError(f"{task!r}: the discriminate task does not use {name}; got {value(config)!r}, expected "
+                             f"the preset's {value(preset)!r}")
+
+
+def candidate_a(models: CandidateModels, temperature, thermal) -> np.ndarray:
+    """a (A/m) of every candidate (columns) at each sub-env's ``temperature`` (K), eq. (4): (n, 3)."""
+    return a_law(models.a_reference[None, :], np.asarray(temperature)[:, None], thermal.reference_temperature)
 
 
 class DiscriminateVectorEnv(TaskVectorEnv):
@@ -137,15 +191,13 @@ class DiscriminateVectorEnv(TaskVectorEnv):
         if not config.output_noise > 0:
             raise ValueError(f"{task!r}: output_noise must be > 0 (the posterior's likelihood), got "
                              f"{config.output_noise!r}")
+        _reject_unused(task, config, self.spec_.env_config())
         n = self.num_envs
         self._quantile = raised_cosine_quantile
         self.candidates = discriminate_candidates(config)
-        hyst = config.hysteresis
         count = len(CANDIDATES)
-        self._params = (np.full(count, hyst.alpha), np.full(count, hyst.Ms), np.full(count, hyst.c),
-                        np.array(self.candidates.chi_r), hyst.kind, config.max_field_step)
-        self._a_reference = np.array(self.candidates.a)
-        self._k = np.array(self.candidates.k)
+        #: the candidates' models (public: the task publishes them; agents read them, never the truth)
+        self.models = candidate_models(config, self.candidates.a, self.candidates.k, self.candidates.chi_r)
         thermal = config.thermal
         self._decay = math.exp(-config.dt / thermal.time_constant)
         self._heat_gain = thermal.thermal_resistance * thermal.power_per_square_field
@@ -197,14 +249,21 @@ class DiscriminateVectorEnv(TaskVectorEnv):
                        for v in indices):
                 raise ValueError(f"reset option truth must be one of {CANDIDATES} or 0..2 (or one per sub-env), got "
                                  f"{options['truth']!r}")
-            checked["truth"] = np.broadcast_to(np.array(indices, dtype=np.int64), (self.num_envs,))
+            checked["truth"] = self._per_sub_env("truth", np.array(indices, dtype=np.int64))
         if "initial_temperature" in options:
             values = np.atleast_1d(np.asarray(options["initial_temperature"]))
             if values.dtype.kind not in "iuf" or not np.all((values > 0) & (values < self.config.temperature_limit)):
                 raise ValueError(f"reset option initial_temperature must be numbers in (0, "
                                  f"{self.config.temperature_limit:g}) K, got {options['initial_temperature']!r}")
-            checked["initial_temperature"] = np.broadcast_to(values.astype(np.float64), (self.num_envs,))
+            checked["initial_temperature"] = self._per_sub_env("initial_temperature", values.astype(np.float64))
         return checked
+
+    def _per_sub_env(self, name: str, values: np.ndarray) -> np.ndarray:
+        """``values`` (one, or one per sub-env) as one per sub-env; a one-line ValueError naming ``name`` else."""
+        if values.shape[0] not in (1, self.num_envs):
+            raise ValueError(f"reset option {name} must be one value or {self.num_envs} (one per sub-env), got "
+                             f"{values.shape[0]}")
+        return np.broadcast_to(values, (self.num_envs,))
 
     def _restart(self, rows, options=None) -> None:
         options = options or {}
@@ -238,12 +297,11 @@ class DiscriminateVectorEnv(TaskVectorEnv):
         self.field[:] = np.clip(np.clip(command, before - change, before + change), -config.field_limit,
                                 config.field_limit)
         # a of every candidate at the step's start temperature (eq. (4)), as the simulator's plant
-        a = self._a_reference[None, :] * (self.temperature[:, None] / config.thermal.reference_temperature)
-        alpha, Ms, c, chi_r, kind, max_step = self._params
-        advance_candidates(self.model_m, before, self.field, a, self._k, alpha, Ms, c, chi_r, kind, max_step)
+        a = candidate_a(self.models, self.temperature, config.thermal)
+        advance_candidates(self.model_m, before, self.field, a, self.models)
         offset = self._heat_gain * mean_square_linear(before, self.field)
-        ambient = self.start_temperature
-        self.temperature[:] = (ambient + offset) + (self.temperature - (ambient + offset)) * self._decay
+        ambient = self.start_temperature  # the coil cools towards its start temperature (no drift)
+        self.temperature[:] = temperature_step(self.temperature, ambient, ambient, offset, self._decay)
         self.steps += 1
         rows = self._all
         true_m = self.model_m[rows, self.truth] / config.hysteresis.Ms
@@ -258,9 +316,10 @@ class DiscriminateVectorEnv(TaskVectorEnv):
         # the score: steps that end undecided, and at an overheat every step left (the metric's whole episode)
         reward = -np.where(decided, 0.0, 1.0) - np.where(overheated & ~decided, total - self.steps, 0)
         reward = reward / total
-        infos = self._infos(decided, overheated)
         self._end_step(reward, terminated, truncated, resetting)
-        return self._observation(), reward, terminated, truncated, infos
+        # after the autoreset: the resetting rows' infos describe their new episode, as their observation does
+        return self._observation(), reward, terminated, truncated, self._infos(decided & ~resetting,
+                                                                               overheated & ~resetting)
 
     # ---------------------------------------------------------------- what the agent sees
 
@@ -337,5 +396,5 @@ class DiscriminateEnv(SingleOfVector):
         super().__init__(task, render_mode, **overrides)
 
 
-__all__ = ["CANDIDATES", "Candidates", "DiscriminateEnv", "DiscriminateVectorEnv", "discriminate_candidates",
-           "recording_drive"]
+__all__ = ["CANDIDATES", "CandidateModels", "Candidates", "DiscriminateEnv", "DiscriminateVectorEnv",
+           "advance_candidates", "candidate_a", "candidate_models", "discriminate_candidates", "recording_drive"]

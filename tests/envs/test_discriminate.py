@@ -7,8 +7,8 @@ from gymnasium.vector import AutoresetMode
 
 import hyst_gym  # noqa: F401
 from task_vector_helpers import assert_single_is_sub_env
-from hyst_gym.envs.discriminate import (CANDIDATES, DECIDED, DiscriminateEnv, DiscriminateVectorEnv,
-                                        discriminate_candidates, recording_drive)
+from hyst_gym.envs.discriminate import (CANDIDATES, DECIDED, CandidateModels, DiscriminateEnv,
+                                        DiscriminateVectorEnv, discriminate_candidates, recording_drive)
 from hyst_gym.physics import ThermalParams
 from hyst_gym.physics.hysteresis import simulate_shared_small_loop
 
@@ -97,6 +97,31 @@ def test_an_overheat_charges_every_step_left_and_ends_the_episode():
     assert total == pytest.approx(-1.0 if not info["decided"][0] else -(steps - 1) / 200, abs=1e-12)
 
 
+def test_a_next_step_autoreset_reports_the_new_episode_in_infos():
+    """The step that starts a sub-env's new episode (NEXT_STEP) reports that episode, as its observation does:
+    its truth, start temperature and uniform posterior, neither decided nor overheated."""
+    env = DiscriminateVectorEnv(2, TASK)
+    env.reset(seed=0, options={"initial_temperature": [333.0, 300.0], "truth": ["pinning", 0]})
+    terminated = np.zeros(2, dtype=bool)
+    while not terminated[0]:
+        _, _, terminated, _, info = env.step(np.ones((2, 1), dtype=np.float32))
+    assert info["overheated"][0]
+    obs, reward, terminated, truncated, info = env.step(np.ones((2, 1), dtype=np.float32))
+    assert reward[0] == 0.0 and not terminated[0] and not truncated[0]
+    assert not info["overheated"][0] and not info["decided"][0]
+    assert info["truth"][0] == env.truth[0] and info["temperature"][0] == env.temperature[0] == env.start_temperature[0]
+    assert info["posterior_truth"][0] == pytest.approx(1.0 / 3.0) and np.allclose(obs[0, 4:], 1.0 / 3.0)
+
+
+def test_the_candidate_models_are_named_and_published():
+    env = DiscriminateVectorEnv(1, TASK)
+    models = env.models
+    assert isinstance(models, CandidateModels)
+    assert np.array_equal(models.a_reference, env.candidates.a) and np.array_equal(models.k, env.candidates.k)
+    assert np.array_equal(models.chi_r, env.candidates.chi_r)
+    assert np.all(models.Ms == env.config.hysteresis.Ms) and models.max_field_step == env.config.max_field_step
+
+
 def test_single_env_is_the_vector_sub_env_and_passes_the_checker():
     assert_single_is_sub_env(TASK, DiscriminateEnv, seed=9, scale=0.5)
 
@@ -117,3 +142,23 @@ def test_bad_input_is_a_one_line_error():
     with pytest.raises(ValueError, match="SAME_STEP is not supported"):
         DiscriminateVectorEnv(1, TASK, autoreset_mode=AutoresetMode.SAME_STEP)
     assert CANDIDATES == ("small_loop", "pinning", "anhysteretic_width")
+
+
+def test_a_per_sub_env_option_of_the_wrong_length_is_a_one_line_error():
+    env = DiscriminateVectorEnv(3, TASK)
+    with pytest.raises(ValueError, match=r"^reset option truth must be one value or 3 \(one per sub-env\), got 2$"):
+        env.reset(seed=0, options={"truth": ["pinning", 0]})
+    with pytest.raises(ValueError, match=r"^reset option initial_temperature must be one value or 3 .*got 4$"):
+        env.reset(seed=0, options={"initial_temperature": [300.0] * 4})
+    env.reset(seed=0, options={"truth": [0, 1, 2], "initial_temperature": 300.0})
+    assert list(env.truth) == [0, 1, 2] and np.all(env.start_temperature == 300.0)
+
+
+@pytest.mark.parametrize("override, name", [({"ambient_drift_rate_range": (-0.05, 0.05)}, "ambient_drift_rate_range"),
+                                            ({"thermal": ThermalParams(ambient_temperature=300.0)},
+                                             "thermal.ambient_temperature"),
+                                            ({"transducer": "lumped"}, "transducer"),
+                                            ({"temperature_sensor": True}, "temperature_sensor")])
+def test_settings_the_task_does_not_use_are_refused(override, name):
+    with pytest.raises(ValueError, match=rf"does not use {name};"):
+        DiscriminateVectorEnv(1, TASK, **override)
