@@ -29,9 +29,9 @@ from typing import NamedTuple
 
 import numpy as np
 from gymnasium.vector import AutoresetMode
-from numba import njit
 
 from ..physics import FirstOrderPlant
+from ..physics.background_compile import background_kernel
 from ..physics.hysteresis import advance_one, magnetization_slope
 from .core import IDENTIFICATION, INFO_KEYS, BatchSimulator
 from .posterior import GridPosterior
@@ -113,7 +113,7 @@ class ControllerModel(NamedTuple):
     max_field_step: float
 
 
-@njit(cache=True, error_model="numpy")
+@background_kernel(error_model="numpy")
 def inverse_fields(field, model_m, target_m, a_hat, k, model, max_change, field_limit, out):
     """The inverse-compensation controller: per sub-env b, the field (A/m) that moves model (6) with
     ``a_hat[b]`` from (``field[b]``, ``model_m[b]``) to ``target_m[b]`` (A/m), by :data:`NEWTON_STEPS` Newton
@@ -139,7 +139,7 @@ def inverse_fields(field, model_m, target_m, a_hat, k, model, max_change, field_
         out[b] = trial
 
 
-@njit(cache=True, error_model="numpy")
+@background_kernel(error_model="numpy")
 def advance_models(model_m, field_from, field_to, a_hat, k, model):
     """The controller's model (6) with ``a_hat`` moved along the applied field, in place."""
     for b in range(model_m.shape[0]):

@@ -23,7 +23,7 @@ ROOT = HERE.parents[2]
 CASES = (("hyst_gym/Excitation-v0", 0, 300), ("hyst_gym/Estimation-v0", 0, 300),
          ("hyst_gym/Identification-v0", 0, 300), ("hyst_gym/Excitation-v0", 3, 60),
          ("hyst_gym/HotCalibrate-v0", 0, 40), ("hyst_gym/HotCalibrateUnknownK-v0", 2, 15),
-         ("hyst_gym/DriftJump-v0", 0, 60))
+         ("hyst_gym/DriftJump-v0", 0, 60), ("hyst_gym/DualControl-v0", 2, 30), ("hyst_gym/Discriminate-v0", 2, 30))
 
 
 def trajectories(cases=CASES) -> dict:
@@ -86,14 +86,15 @@ def assert_same_bits(twin: dict, compiled: dict):
 
 
 def test_python_twins_give_the_compiled_numbers_bit_for_bit_and_compile_nothing(tmp_path, monkeypatch):
-    from hyst_gym.envs import kernels
+    from hyst_gym.envs import discriminate, dual_control, kernels
 
     twin, compiled_names, _ = run_child(tmp_path, background_compile.PYTHON)
     assert compiled_names == [], f"the plain-Python path compiled {sorted(set(compiled_names))}"
     monkeypatch.setenv(background_compile.MODE_VARIABLE, background_compile.FOREGROUND)
     compiled = trajectories()  # this process: the compiled kernels
     entry_kernels = (kernels.excitation_step, kernels.identification_step, kernels.plant_step, kernels.finish_step,
-                     kernels.posterior_step, kernels.posterior_vertex)
+                     kernels.posterior_step, kernels.posterior_vertex, dual_control.inverse_fields,
+                     dual_control.advance_models, discriminate.advance_candidates, discriminate._trajectory_kernel)
     assert all(kernel.overloads for kernel in entry_kernels), "this process ran a kernel uncompiled"
     assert all(np.isfinite(v).any() and v.size > 100 for v in compiled.values())
     assert_same_bits(twin, compiled)
