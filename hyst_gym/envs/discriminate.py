@@ -20,7 +20,8 @@ calibration tasks' hot coil). The agent designs the field under the field, slew 
 estimator is the exact Bayes posterior over the three candidates (each candidate's noise-free M driven by
 the applied field, a Gaussian likelihood of the measured M/Ms). The episode ends when the truth's posterior
 probability reaches :data:`DECIDED` (terminated, decided), at an overheat (terminated), or at 200 steps; the
-score is the time to the decision (s; the whole 10 s when undecided or overheated).
+score is the time to the decision (s, the deciding step included; the whole 10 s when undecided or overheated,
+an overheat on the deciding step too).
 """
 
 from __future__ import annotations
@@ -313,8 +314,9 @@ class DiscriminateVectorEnv(TaskVectorEnv):
         terminated = decided | overheated
         truncated = ~terminated & (self.steps >= config.episode_steps)
         total = config.episode_steps
-        # the score: steps that end undecided, and at an overheat every step left (the metric's whole episode)
-        reward = -np.where(decided, 0.0, 1.0) - np.where(overheated & ~decided, total - self.steps, 0)
+        # the score: every step up to and including the deciding one, and at an overheat (which takes precedence
+        # over a decision on the same step) every step left too (the metric's whole episode)
+        reward = -1.0 - np.where(overheated, total - self.steps, 0)
         reward = reward / total
         self._end_step(reward, terminated, truncated, resetting)
         # after the autoreset: the resetting rows' infos describe their new episode, as their observation does
@@ -370,9 +372,10 @@ class DiscriminateEnv(SingleOfVector):
     | 4..6 | p_small_loop, p_pinning, p_anhysteretic_width | 0 | 1 | the posterior probabilities |
 
     ## Rewards
-    ``-1/200`` for every step that ends with the truth's posterior below 0.99, and at an overheat ``-1/200``
-    for every step left. The return times 10 s is minus the time to the decision (s), the per-draw score;
-    the metric is its mean over draws (10 s when undecided or overheated).
+    ``-1/200`` for every step up to and including the one that ends with the truth's posterior at 0.99, and at
+    an overheat ``-1/200`` for every step left too (an overheat on the deciding step counts as an overheat). The
+    return times 10 s is minus the time to the decision (s), the per-draw score; the metric is its mean over
+    draws (10 s when undecided or overheated).
 
     ## Starting State
     Field 0, M = 0 in every candidate, the posterior uniform; truth and start temperature drawn from the

@@ -68,19 +68,19 @@ def test_the_reward_sums_to_minus_the_time_to_the_decision():
     env = DiscriminateVectorEnv(6, TASK)
     env.reset(seed=4)
     total, alive = np.zeros(6), np.ones(6, dtype=bool)
-    undecided_steps, ended = np.zeros(6), np.zeros(6, dtype=bool)
+    steps_to_decision, ended = np.zeros(6), np.zeros(6, dtype=bool)
     for _ in range(200):
         _, reward, terminated, truncated, info = env.step(np.full((6, 1), 0.6, dtype=np.float32) *
                                                           np.sign(np.sin(env.steps[:, None] * 0.3) + 1e-9))
         total += np.where(alive, reward, 0.0)
-        undecided_steps += np.where(alive & ~info["decided"], 1, 0)
+        steps_to_decision += np.where(alive, 1, 0)  # the deciding step counts
         assert np.all(info["posterior_truth"][info["decided"]] >= DECIDED)
         ended |= alive & (terminated | truncated)
         alive &= ~(terminated | truncated)
         if not alive.any():
             break
     assert ended.all() and np.all(~info["overheated"])
-    assert np.allclose(total, -undecided_steps / 200, rtol=0, atol=1e-12)
+    assert np.allclose(total, -steps_to_decision / 200, rtol=0, atol=1e-12)
 
 
 def test_an_overheat_charges_every_step_left_and_ends_the_episode():
@@ -94,7 +94,18 @@ def test_an_overheat_charges_every_step_left_and_ends_the_episode():
         if terminated[0] or truncated[0]:
             break
     assert info["overheated"][0] and steps < 200
-    assert total == pytest.approx(-1.0 if not info["decided"][0] else -(steps - 1) / 200, abs=1e-12)
+    assert total == pytest.approx(-1.0, abs=1e-12)  # the whole episode, decided on that step or not
+
+
+def test_an_overheat_on_the_deciding_step_counts_the_whole_episode():
+    """A step both decided and overheated pays for every step left, the deciding one included."""
+    env = DiscriminateVectorEnv(1, TASK)
+    env.reset(seed=0, options={"initial_temperature": env.config.temperature_limit - 1e-6})
+    env.log_post[0] = -50.0
+    env.log_post[0, env.truth[0]] = 0.0  # decided already: the first step decides, and it overheats
+    _, reward, terminated, _, info = env.step(np.ones((1, 1), dtype=np.float32))
+    assert terminated[0] and info["decided"][0] and info["overheated"][0]
+    assert reward[0] == pytest.approx(-1.0, abs=1e-12)
 
 
 def test_a_next_step_autoreset_reports_the_new_episode_in_infos():
