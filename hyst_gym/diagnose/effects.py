@@ -40,9 +40,9 @@ MAINS_NAMES = {ch: tuple(f"{term}_{ch[0]}" for term in ("mains_cos", "mains_sin"
                for ch in ("magnetization", "displacement")}
 #: The input map's coefficients in the order :func:`.model.mapped_field` takes them.
 INPUT_MAP_NAMES = ("input_quadratic", "input_cubic", "input_saturation", "input_saturation_negative")
-#: The input dynamics' lag, delay and pole time constant (s), in the order :func:`.model.input_dynamics` takes
-#: them: after the delay a lag 1/(1 + tau_in*s) and a Butterworth pair at 1/(2*pi*tau2_in) (tau2_in = 0: none).
-INPUT_DYNAMICS_NAMES = ("tau_in", "delay_in", "tau2_in")
+#: The input dynamics' lag and delay (s), in the order :func:`.model.input_dynamics` takes them. Its pair of poles
+#: (tau2_in) is not fitted: with it the input_lag fit ran for minutes on some records of the other-forms study.
+INPUT_DYNAMICS_NAMES = ("tau_in", "delay_in")
 #: The sensor dynamics' time constants per channel (s): 1/(1 + tau*s + tau2^2*s^2) (:func:`.model.sensor_dynamics`).
 SENSOR_DYNAMICS_NAMES = {"magnetization": ("tau_m", "tau2_m"), "displacement": ("tau_x", "tau2_x")}
 #: Mains pickup needs this many cycles in the record (a sinusoid of known frequency is fixed by a few)
@@ -212,11 +212,9 @@ def _input_map_parameters(recording, structure, base_values):
 
 def _input_dynamics_parameters(recording, structure, base_values):
     # a coil's L/R or an amplifier's bandwidth: a lag and a transport delay of up to a few % of the record
-    # and a Butterworth pair of poles (an amplifier's bandwidth; tau2_in = 0: the first-order lag)
     frame = Frame.of(recording)
     return {"tau_in": Parameter("tau_in", frame.dt, 0.0, 0.05 * frame.duration, "s", scale=frame.dt),
-            "delay_in": Parameter("delay_in", 0.0, 0.0, 0.02 * frame.duration, "s", scale=frame.dt),
-            "tau2_in": Parameter("tau2_in", 0.0, 0.0, frame.duration / (40 * np.pi), "s", scale=frame.dt)}
+            "delay_in": Parameter("delay_in", 0.0, 0.0, 0.02 * frame.duration, "s", scale=frame.dt)}
 
 
 def _per_channel_terms(names_by_channel, lower, upper, scale, unit="1 (of the channel's half-span)"):
@@ -317,11 +315,9 @@ def _input_map_starts(model, start):
 
 
 def _input_dynamics_starts(model, start):
-    # from a lag of one step and from a delay of two (a delay and a lag bend the loop alike at low rates), and
-    # from a pair of poles at 1/(2*pi*2*dt): the fit cannot leave tau2_in = 0 by itself, where the field's
-    # dependence on tau2_in is flat (it enters squared)
+    # from a lag of one step and from a delay of two (a delay and a lag bend the loop alike at low rates)
     dt = model.parameters["tau_in"].scale
-    return [start, dict(start, tau_in=0.1 * dt, delay_in=2.0 * dt), dict(start, tau_in=0.1 * dt, tau2_in=2.0 * dt)]
+    return [start, dict(start, tau_in=0.1 * dt, delay_in=2.0 * dt)]
 
 
 def _curve_mixture_starts(model, start):
@@ -605,8 +601,7 @@ _REGISTERED = (
     Effect(
         name="input_lag", slot="input dynamics (recorded to true field): a lag and a delay",
         words="input dynamics: the field in the material lags the recorded one (a coil's L/R or an amplifier's "
-              "bandwidth: a delay delay_in, a first-order lag tau_in and a Butterworth pair of poles at "
-              "1/(2*pi*tau2_in))",
+              "bandwidth: a first-order lag tau_in and a delay delay_in)",
         parameter_names=INPUT_DYNAMICS_NAMES, parameters=_input_dynamics_parameters, identified_by=BestDetermined(),
         applies=_always, rate_dependent=True, rescue=("tau_in",), starts=_input_dynamics_starts,
         # no lag or no delay (0) is a member of the family (a pure delay, a pure lag), not a wall

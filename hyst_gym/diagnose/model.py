@@ -214,7 +214,7 @@ class Model:
             group = np.flatnonzero(np.all(maps == shape, axis=1))
             unique, inverse = np.unique(rows[group], axis=0, return_inverse=True)
             field = mapped_field(input_dynamics(self.recording.time, self.recording.field, *shape[4:],
-                                                self._classes), *shape[:4])
+                                                classes=self._classes), *shape[:4])
             simulated = simulate_members(self.recording.time, field, np.ascontiguousarray(unique), kind,
                                          self.max_field_step, AMBIENT_TEMPERATURE)
             out[:, group] = simulated[:, np.asarray(inverse).reshape(-1)]
