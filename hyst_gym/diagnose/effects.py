@@ -159,7 +159,7 @@ def _thermal_parameters(recording, structure, base_values):
         "tau_th": Parameter("tau_th", frame.duration, 5 * frame.dt, 1e3 * frame.duration, "s", log=True),
         "beta_Ms": Parameter("beta_Ms", 0.0, -0.01, 0.01, "1/K", scale=1e-3),
         # the pinning and the reversibility move with the temperature too (the measured gadolinium loops: k
-        # collapses toward the Curie point); linear in the rise as Ms(T), today's law at 0
+        # collapses toward the Curie point); linear in the rise as Ms(T), the plain heating law at 0
         "beta_k": Parameter("beta_k", 0.0, -0.05, 0.05, "1/K", scale=1e-3),
         "beta_c": Parameter("beta_c", 0.0, -0.02, 0.02, "1/K", scale=1e-3),
         # the family's heating law: drive ~ |H|^p (Joule heating of a current-driven coil: p = 2;
@@ -169,9 +169,9 @@ def _thermal_parameters(recording, structure, base_values):
 
 
 def _sensor_lag_parameters(recording, structure, base_values):
-    # per channel the filter 1/(1 + tau*s + tau2^2*s^2): tau2 = 0 a first-order lag (today's family), tau2 > 0 a
-    # resonance at 1/(2*pi*tau2) Hz with damping ratio tau/(2*tau2), from a tenth of the sampling rate down to 20
-    # cycles over the record (a probe or an amplifier that rings)
+    # per channel the filter 1/(1 + tau*s + tau2^2*s^2): tau2 = 0 a first-order lag, tau2 > 0 a resonance at
+    # 1/(2*pi*tau2) Hz with damping ratio tau/(2*tau2) (a probe or an amplifier that rings); tau2 <= duration/(40*pi)
+    # keeps at least 20 cycles of the resonance in the record, and no lower bound is set (tau2 -> 0 is the lag)
     frame = Frame.of(recording)
     out = {}
     for channel, (tau, _) in SENSOR_DYNAMICS_NAMES.items():

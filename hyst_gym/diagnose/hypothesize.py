@@ -142,7 +142,7 @@ def _staged_pinning_starts(split, base, effect, model):
 
     Why: on a plain heating record the two coefficients lower the fitting block's SSE by 0.05 % and bend the
     extrapolation: the held-out RMSE went from 1.03 to 2.68 noise units (make_recording thermal_drift, seed 1,
-    both channels) where the BIC had preferred today's law by 15."""
+    both channels) where the BIC had preferred the plain heating law by 15."""
     held = {n: (replace(p, free=False) if n in PINNING_DRIFT_COLUMNS else p) for n, p in model.parameters.items()}
     held_model = Model(model.recording, model.structure, held, model.max_field_step)
     first = min((split.fit(held_model, start, max_nfev=40) for start in effect_starts(held_model, effect.name,

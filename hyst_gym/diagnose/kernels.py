@@ -47,7 +47,7 @@ MAGNETIC_COLUMNS = ("a", "k", "alpha", "Ms", "c", "H0", "k_e", "heating", "tau_t
                     "heating_exponent")
 #: Optional trailing columns after :data:`MAGNETIC_COLUMNS`: the time variation of the pinning k and of the
 #: reversibility c with the heating's temperature rise theta (K), ``k(T) = k*(1 - beta_k*theta)`` and
-#: ``c(T) = c*(1 - beta_c*theta)`` (1/K each). A row without them (12 columns) has both zero: today's thermal
+#: ``c(T) = c*(1 - beta_c*theta)`` (1/K each). A row without them (12 columns) has both zero: the plain heating
 #: law, so rows written before them keep their numbers.
 PINNING_DRIFT_COLUMNS = ("beta_k", "beta_c")
 AMBIENT_TEMPERATURE = ROOM_TEMPERATURE  # K, reference temperature of the fitted a (eq. 4)

@@ -26,7 +26,7 @@ the base model when those parameters vanish:
                                 ``beta_Ms`` (1/K): ``Ms(T) = Ms*(1 - beta_Ms*(T - T_amb))``
                                 ``beta_k``, ``beta_c`` (1/K): the pinning and the reversibility
                                 move with it too, ``k(T) = k*(1 - beta_k*(T - T_amb))``,
-                                ``c(T) = c*(1 - beta_c*(T - T_amb))`` (today's law at 0)
+                                ``c(T) = c*(1 - beta_c*(T - T_amb))`` (the plain heating law at 0)
 ``sensor_lag``                  ``tau_m``, ``tau_x``, ``tau2_m``, ``tau2_x`` (s): each output
                                 sensor a second-order filter ``1/(1 + tau*s + tau2^2*s^2)``
                                 (natural frequency 1/(2*pi*tau2), damping ratio tau/(2*tau2));
@@ -46,7 +46,8 @@ the base model when those parameters vanish:
 ``anhysteretic_shape``          the other anhysteretic curve (Ising <-> Langevin), or a mixture:
                                 ``mix_weight`` w and ``mix_a_ratio`` r, the magnetization
                                 ``(1 - w)*M[other curve, a] + w*M[base curve, r*a]`` (two phases,
-                                k, c, Ms and the feedback rho shared): w = 0 is the swap, w = 1 the
+                                the same k, c, Ms and rho, each phase with its own feedback on its
+                                own magnetization): w = 0 is the swap, w = 1 the
                                 base curve; between them Brillouin-like curves, and a sharper or
                                 softer knee (r < 1 or > 1)
 ``input_map``                   ``input_quadratic``, ``input_cubic``, ``input_saturation``,
@@ -223,7 +224,8 @@ class Model:
     def _curve_mixture(self, values_list, out):
         """The ``anhysteretic_shape`` family: ``(1 - w)*M[curve] + w*M[base curve, a*r]`` with w = ``mix_weight``
         and r = ``mix_a_ratio``, a second phase on the base model's curve with its own shape parameter (the
-        other parameters and the feedback rho shared); ``out`` itself (the plain swapped curve) where w = 0."""
+        other parameters, rho included, take the same values, but each phase is simulated with its own feedback on
+        its own magnetization: the phases are not coupled); ``out`` itself (the plain swapped curve) where w = 0."""
         weights = [v.get("mix_weight", 0.0) for v in values_list]
         mixed = [i for i, w in enumerate(weights) if w != 0.0]
         if not mixed:
