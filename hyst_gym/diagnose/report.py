@@ -84,13 +84,21 @@ def slot_shapes(fit) -> list:
     if effect == "thermal_drift":
         rise = temperature_rise_trace(rec, values)
         a_t = values["a"] * (ROOM_TEMPERATURE + rise) / ROOM_TEMPERATURE
-        ms_t = values["Ms"] * (1.0 - values.get("beta_Ms", 0.0) * rise)
-        curves = [("a(t)", rec.time, a_t / a_t[0]), ("Ms(t)", rec.time, ms_t / ms_t[0])]
-        # the pinning and the reversibility as the kernel moves them (floored alike)
-        k_t = np.maximum(1.0 - values.get("beta_k", 0.0) * rise, 1e-3)
-        c_t = values["c"] * (1.0 - values.get("beta_c", 0.0) * rise)
-        curves += [("k(t)", rec.time, k_t / k_t[0])] if values.get("beta_k", 0.0) else []
-        curves += [("c(t)", rec.time, c_t / c_t[0])] if values.get("beta_c", 0.0) and values["c"] else []
+        # Ms, k and c as the kernel (kernels.simulate_members) moves them, with its limits: Ms and k floored at
+        # 1e-3 of their start, c kept in [0, 0.999]; a curve whose limit binds says so in its label
+        ms_raw = 1.0 - values.get("beta_Ms", 0.0) * rise
+        k_raw = 1.0 - values.get("beta_k", 0.0) * rise
+        c_raw = values["c"] * (1.0 - values.get("beta_c", 0.0) * rise)
+        ms_t, k_t, c_t = np.maximum(ms_raw, 1e-3), np.maximum(k_raw, 1e-3), np.clip(c_raw, 0.0, 0.999)
+
+        def label(name, raw, kept):
+            return name if np.array_equal(raw, kept) else f"{name} (at the kernel's limit for part of the record)"
+
+        curves = [("a(t)", rec.time, a_t / a_t[0]), (label("Ms(t)", ms_raw, ms_t), rec.time, ms_t / ms_t[0])]
+        if values.get("beta_k", 0.0):
+            curves.append((label("k(t)", k_raw, k_t), rec.time, k_t / k_t[0]))
+        if values.get("beta_c", 0.0) and values["c"]:
+            curves.append((label("c(t)", c_raw, c_t), rec.time, c_t / c_t[0]))
         return [("material_drift", "Material parameters over the record (relative to the start)", "time (s)",
                  "value / value at t = 0", curves)]
     if effect == "anhysteretic_shape":

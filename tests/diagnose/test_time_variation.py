@@ -138,4 +138,11 @@ def test_the_report_plots_k_and_c_over_the_record():
     np.testing.assert_allclose(by_label["k(t)"], 1.0 - 0.01 * rise, rtol=1e-12)
     np.testing.assert_allclose(by_label["c(t)"], 1.0 + 0.005 * rise, rtol=1e-12)
     plain = slot_shapes(SimpleNamespace(values=dict(values, beta_k=0.0, beta_c=0.0), model=model))[0][4]
-    assert [label for label, _, _ in plain] == ["a(t)", "Ms(t)"]  # today's plot where they do not move
+    assert [label for label, _, _ in plain] == ["a(t)", "Ms(t)"]  # the plain law's plot where they do not move
+    # a pinning law that would cross zero within the record: the plot follows the kernel's floor (1e-3 of k at the
+    # start) and its label says that the limit binds
+    steep = dict(values, beta_k=2.0 / rise[-1], beta_c=0.0)
+    (_, _, _, _, curves), = slot_shapes(SimpleNamespace(values=steep, model=model))
+    (label, k_curve), = [(label, y) for label, _, y in curves if label.startswith("k(t)")]
+    assert "limit" in label and k_curve.min() == pytest.approx(1e-3, rel=1e-12)
+    np.testing.assert_allclose(k_curve, np.maximum(1.0 - steep["beta_k"] * rise, 1e-3), rtol=1e-12)
