@@ -20,13 +20,22 @@ The environment variable ``HYST_GYM_COMPILE`` chooses (read at each such first c
 * ``foreground``: compile on the first call, as plain numba (what speed measurements want);
 * ``python``: never compile; always the twin (debugging, and the bit-for-bit test).
 
+A speed measurement runs inside :func:`foreground_compiles`, so that it never times the twins.
+
 Where the helper fails, or its cache cannot be read here, the kernel compiles in the foreground
 after one line on stderr that says so.
+
+Several interpreters (the worker processes of a ``SubprocVecEnv``, say) each start a helper, but a
+kernel is compiled by one of them at a time: a helper takes a lock file per kernel and signature
+(:func:`compile_lock`) and, holding it, loads what another helper wrote meanwhile instead of
+compiling it again. Eight workers on two cores compile each kernel once, not eight times at once.
 """
 
 from __future__ import annotations
 
 import base64
+import contextlib
+import hashlib
 import importlib
 import json
 import os
@@ -35,6 +44,7 @@ import re
 import select
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 import types as python_types
@@ -56,7 +66,8 @@ PATH_VARIABLE = "HYST_GYM_COMPILE_PATH"
 #: a helper with nothing to compile for this long (s) ends; the next request starts another
 HELPER_IDLE_SECONDS = 60.0
 #: the helper's program: the parent's sys.path first, then :func:`serve`
-#: an answer line of the helper: ``done N`` or ``failed N why``
+#: an answer line of the helper: ``done N`` or ``failed N why`` (``done N loaded``: another helper had
+#: compiled it into the cache, and this one loaded it)
 ANSWER_PATTERN = re.compile(r"(done|failed) (\d+)(?: (.*))?")
 HELPER_CODE = ("import json, os, sys; sys.path[:0] = json.loads(os.environ['HYST_GYM_COMPILE_PATH']); "
                "from hyst_gym.physics.background_compile import serve; serve()")
@@ -79,6 +90,23 @@ def effective_mode() -> str:
     if mode == BACKGROUND and (numba_config.DISABLE_JIT or os.name != "posix" or numba_config.USING_SVML):
         return FOREGROUND
     return mode
+
+
+@contextlib.contextmanager
+def foreground_compiles():
+    """Within this block, background kernels compile on their first call (``HYST_GYM_COMPILE=foreground``),
+    as a speed measurement needs: in the background its first calls would time the plain-Python twins,
+    about 100x slower. The variable's previous value (or its absence) comes back after the block; it is
+    process-wide while the block runs."""
+    previous = os.environ.get(MODE_VARIABLE)
+    os.environ[MODE_VARIABLE] = FOREGROUND
+    try:
+        yield
+    finally:
+        if previous is None:
+            os.environ.pop(MODE_VARIABLE, None)
+        else:
+            os.environ[MODE_VARIABLE] = previous
 
 
 def python_twin(kernel, _twins=None, _namespaces=None):
@@ -333,14 +361,32 @@ def serve(idle_seconds: float = HELPER_IDLE_SECONDS) -> None:
             pass
 
 
+def compile_lock(module: str, qualname: str, signature) -> str:
+    """The lock file that one helper holds while it compiles ``module.qualname`` at ``signature``: in a
+    folder of this user's in the temporary directory, named by a hash of the three (numba's cache folder
+    is numba's internal business)."""
+    key = hashlib.sha256(repr((module, qualname, tuple(signature))).encode()).hexdigest()[:32]
+    folder = os.path.join(tempfile.gettempdir(), f"hyst_gym-compile-{os.getuid()}")
+    os.makedirs(folder, mode=0o700, exist_ok=True)
+    return os.path.join(folder, f"{key}.lock")
+
+
 def _compile_request(line: bytes) -> str:
-    """Compile one request (a line from the parent) into numba's cache; the answer line."""
+    """Compile one request (a line from the parent) into numba's cache, holding its
+    :func:`compile_lock` (numba's ``compile`` loads from the cache what another helper wrote while this
+    one waited); the answer line, ``done N loaded`` when it was loaded."""
     number, module, qualname, signature = pickle.loads(base64.b64decode(line))
     try:
         kernel = importlib.import_module(module)
         for part in qualname.split("."):
             kernel = getattr(kernel, part)
-        kernel.compile(signature)
-        return f"done {number}"
+        import fcntl  # POSIX only, as the helper is (effective_mode)
+
+        with open(compile_lock(module, qualname, signature), "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes, or when this process ends
+            hits = sum(kernel._cache_hits.values())
+            kernel.compile(signature)
+            loaded = sum(kernel._cache_hits.values()) > hits
+        return f"done {number} loaded" if loaded else f"done {number}"
     except Exception as error:  # any failure is the parent's to report; it then compiles itself
         return f"failed {number} {type(error).__name__}: {' '.join(str(error).split())[:300]}"

@@ -82,3 +82,63 @@ def test_background_falls_back_to_foreground_where_the_twin_cannot_stand_in(monk
     assert bc.effective_mode() == expected
     monkeypatch.setenv(bc.MODE_VARIABLE, bc.PYTHON)
     assert bc.effective_mode() == bc.PYTHON
+
+
+PROBE_KERNEL = '''
+from hyst_gym.physics.background_compile import background_kernel
+
+
+@background_kernel()
+def lock_probe(x):
+    total = 0.0
+    for i in range(10):
+        total += x * i
+    return total
+'''
+
+
+def test_helpers_of_several_processes_compile_a_kernel_once(tmp_path):
+    """Two interpreters' helpers asked for the same kernel at the same moment (a SubprocVecEnv's workers):
+    one compiles it into the shared cache, the other waits on the kernel's lock file and loads it. Without
+    the lock both would compile at once (each answering a plain ``done``)."""
+    import base64
+    import json
+    import pickle
+    import subprocess
+    import sys
+
+    from numba.core import types
+
+    (tmp_path / "lock_probe_module.py").write_text(PROBE_KERNEL)
+    env = {**os.environ, bc.MODE_VARIABLE: bc.FOREGROUND, "NUMBA_CACHE_DIR": str(tmp_path / "cache"),
+           bc.PATH_VARIABLE: json.dumps([str(tmp_path), *sys.path])}
+    request = base64.b64encode(pickle.dumps((0, "lock_probe_module", "lock_probe", (types.float64,)))) + b"\n"
+    helpers = [subprocess.Popen([sys.executable, "-c", bc.HELPER_CODE], stdin=subprocess.PIPE,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env) for _ in range(2)]
+    for helper in helpers:
+        helper.stdin.write(request)
+        helper.stdin.flush()
+    for helper in helpers:
+        helper.stdin.close()  # each helper answers what it was asked, then ends
+    answers = []
+    for helper in helpers:
+        out, err = helper.stdout.read(), helper.stderr.read()
+        assert helper.wait(timeout=300) == 0, err.decode()[-2000:]
+        answers.append(out.decode().strip())
+    assert sorted(answers) == ["done 0", "done 0 loaded"]
+    assert bc.ANSWER_PATTERN.fullmatch("done 0 loaded").group(1) == "done"
+    assert len(list((tmp_path / "cache").rglob("*lock_probe*.nbc"))) == 1
+
+
+@pytest.mark.parametrize("previous", [None, bc.PYTHON])
+def test_foreground_compiles_sets_the_mode_and_gives_back_the_previous(monkeypatch, previous):
+    """What speed measurements run under: foreground within the block, the user's setting (or none) after it,
+    also when the block raises."""
+    if previous is None:
+        monkeypatch.delenv(bc.MODE_VARIABLE, raising=False)
+    else:
+        monkeypatch.setenv(bc.MODE_VARIABLE, previous)
+    with pytest.raises(RuntimeError), bc.foreground_compiles():
+        assert bc.effective_mode() == bc.FOREGROUND
+        raise RuntimeError("stop")
+    assert os.environ.get(bc.MODE_VARIABLE) == previous
