@@ -75,6 +75,9 @@ TARGETS = (
            "of the study's slowest recordings)", "at_most", 20.0, "s",
            "experiments/results/diagnose/speed_20000.json",
            "python -m experiments.diagnose_speed --slowest 3 --samples 20000 --page docs/speed.md"),
+    Target("next_drive_20000", "speed", "designing the next drive (`diagnose --next-drive`) for a 20,000-sample "
+           "recording (the slowest of the own generator's study cases)", "at_most", 30.0, "s",
+           "experiments/results/diagnose/next_drive_speed.json", "python -m experiments.next_drive_speed"),
     Target("pe_prediction_auc", "accuracy", "the best persistent-excitation test predicts settling: AUC over all "
            "episodes", "at_least", 0.9, "", "experiments/results/pe_prediction.json",
            "python -m experiments.pe_prediction"),
@@ -125,6 +128,15 @@ def _diagnose_speed():
     return slowest["seconds_alone"], detail
 
 
+def _next_drive_speed():
+    result = _json(BY_KEY["next_drive_20000"].source)
+    designed = [r for r in result["rows"] if r["design_seconds"] is not None]
+    slowest = max(designed, key=lambda r: r["design_seconds"])
+    detail = (f"own/{slowest['channels']} {slowest['effect']} seed {slowest['seed']}, {result['samples']:,} samples, "
+              f"{len(designed)} designs, 1-min load {slowest['load_average_before']:.1f}")
+    return slowest["design_seconds"], detail
+
+
 def _pe_auc():
     result = _json(BY_KEY["pe_prediction_auc"].source)
     test = result["best_test"]
@@ -152,6 +164,8 @@ def measurement(key: str):
         return _first_step("first_s" if key == "first_step_install" else "cached_s")
     if key == "diagnose_20000":
         return _diagnose_speed()
+    if key == "next_drive_20000":
+        return _next_drive_speed()
     if key == "pe_prediction_auc":
         return _pe_auc()
     if key == "paper_settle_half_ramp":
