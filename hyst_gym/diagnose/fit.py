@@ -71,25 +71,50 @@ class Objective:
         self.mask = mask
         self.data = {ch: model.recording.output(ch) for ch in model.channels}
         self.evaluations = 0
+        # A mask that is the record's first samples (the fitting block): the model simulates only those
+        # (Model.up_to), to the same numbers. Otherwise the whole record.
+        mask = np.asarray(mask, dtype=bool)
+        end = int(np.count_nonzero(mask))
+        prefix = mask.ndim == 1 and end > 0 and bool(np.all(mask[:end]))
+        self._simulated = model.up_to(end) if prefix else model
+        self._simulated_mask = mask[:end] if prefix else mask
+        # (x's bytes, its stencil, the stencil's magnetization): simulated with a point (__call__) for its Jacobian
+        self._speculated = None
 
     def residual_of(self, predicted: dict, mask=None) -> np.ndarray:
-        mask = self.mask if mask is None else mask
-        return np.concatenate([(predicted[ch][mask] - self.data[ch][mask]) / self.noise[ch]
+        """The normalized residual of ``predicted`` (the whole record's channels, or the simulated samples')
+        on ``mask`` (default: the objective's)."""
+        length = predicted[self.model.channels[0]].shape[0]
+        if mask is None:
+            mask = self.mask if length == self.mask.shape[0] else self._simulated_mask
+        return np.concatenate([(predicted[ch][mask] - self.data[ch][:length][mask]) / self.noise[ch]
                                for ch in self.model.channels])
 
-    def residuals_many(self, values_list, mask=None) -> list[np.ndarray]:
-        magnetization = self.model.magnetization(values_list)
+    def residuals_many(self, values_list) -> list[np.ndarray]:
+        magnetization = self._simulated.magnetization(values_list)
         self.evaluations += len(values_list)
-        return [self.residual_of(self.model.predict(v, magnetization[:, i]), mask)
+        return [self.residual_of(self._simulated.predict(v, magnetization[:, i]))
                 for i, v in enumerate(values_list)]
 
     def __call__(self, x):
+        stencil = self._stencil(x)
+        values = stencil[0]
         with np.errstate(over="ignore", invalid="ignore"):  # handled: capped below
-            r = self.residuals_many([self.model.values_from_x(x)])[0]
+            if self._simulated.simulation_passes(values) <= self._simulated.simulation_passes(values[:1]):
+                # the Jacobian's members cost no more simulation passes than this point alone: simulate them
+                # with it (each member's numbers are the same in any bank), for the Jacobian at x that the
+                # solver asks for next whenever it accepts the step
+                magnetization = self._simulated.magnetization(values)
+                self._speculated = (np.asarray(x, dtype=np.float64).tobytes(), stencil, magnetization)
+            else:
+                magnetization = self._simulated.magnetization(values[:1])
+            self.evaluations += 1
+            r = self.residual_of(self._simulated.predict(values[0], magnetization[:, 0]))
         r = np.nan_to_num(r, nan=NONFINITE_RESIDUAL, posinf=NONFINITE_RESIDUAL, neginf=-NONFINITE_RESIDUAL)
         return np.clip(r, -RESIDUAL_CAP, RESIDUAL_CAP)
 
-    def jacobian(self, x):
+    def _stencil(self, x):
+        """The forward-difference stencil at ``x``: (values of x and of each perturbed coordinate, steps)."""
         names = self.model.free_names
         lower = np.array([self.model.parameters[n].x_bounds[0] for n in names])
         upper = np.array([self.model.parameters[n].x_bounds[1] for n in names])
@@ -101,8 +126,19 @@ class Objective:
             xi = x.copy()
             xi[i] = np.clip(xi[i] + steps[i], lower[i], upper[i]) if not flip[i] else max(xi[i] + steps[i], lower[i])
             values.append(self.model.values_from_x(xi))
+        return values, steps
+
+    def jacobian(self, x):
+        speculated, self._speculated = self._speculated, None
         with np.errstate(over="ignore", invalid="ignore"):  # handled: a non-finite entry is capped below
-            res = self.residuals_many(values)
+            if speculated is not None and speculated[0] == np.asarray(x, dtype=np.float64).tobytes():
+                (values, steps), magnetization = speculated[1], speculated[2]
+                self.evaluations += len(values)
+                res = [self.residual_of(self._simulated.predict(v, magnetization[:, i]))
+                       for i, v in enumerate(values)]
+            else:
+                values, steps = self._stencil(x)
+                res = self.residuals_many(values)
             base = res[0]
             J = np.empty((base.size, len(x)))
             for i in range(len(x)):

@@ -34,8 +34,8 @@ import numpy as np
 from numba import njit
 
 from ..physics.constants import ROOM_TEMPERATURE
-from ..physics.hysteresis import (advance_one, magnetization_slope, simulate_shared,
-                                  simulate_shared_small_loop)
+from ..physics.hysteresis import (ISING, LaneConstants, _midpoint, _small_loop_slope, advance_one, lane_constants,
+                                  magnetization_slope, monotone_substeps, simulate_shared, simulate_shared_small_loop)
 from ..physics.linear_system import first_order_hold, lti_step
 from ..physics.thermal import a_law_kernel, mean_square_linear_kernel
 
@@ -90,6 +90,226 @@ def simulate_members(time, field, params, kind, max_field_step, ambient):
         if not done[b]:
             _simulate_one(time, field, params[b], kind, max_field_step, ambient, out, b)
     return out
+
+
+@njit(cache=True, nogil=True)
+def heating_reference(field):
+    """The heating drive's reference field (A/m) for ``field``: its RMS (:func:`_simulate_one`'s ``h_ref``)."""
+    return math.sqrt(np.mean(field * field)) + 1e-300
+
+
+def lane_passes(count: int) -> int:
+    """Compiled passes over the record of :func:`simulate_lanes` for ``count`` lanes: one per
+    :data:`BANK_LANES` of them (a pass costs about the same for one lane as for a full bank)."""
+    return max(1, (int(count) + BANK_LANES - 1) // BANK_LANES)
+
+
+@njit(cache=True, nogil=True)
+def simulate_lanes(time, fields, field_index, params, h_ref, kind, max_field_step, ambient):
+    """Magnetization (A/m), shape ``(T, B)``, of ``B`` extended models, each under its own field, in one
+    pass: lane ``b`` sees ``fields[field_index[b]] + H0`` (``fields`` shape ``(F, T)``; ``h_ref[f]`` the RMS
+    of field ``f``, the heating drive's reference). ``params`` as :func:`simulate_members`.
+
+    Why: a bank of members that share one field (:func:`simulate_members`) costs one pass, but a member with
+    its own field (another input map or bias), eddy currents or heating cost a pass each. Here every lane
+    computes its own substeps, with the arithmetic of :func:`_simulate_one` (and so of the bank: each lane
+    gives the same numbers as alone), and the substeps run outer, the lanes inner, so that the lanes'
+    independent chains overlap in the processor as the bank's do."""
+    n_samples = time.shape[0]
+    n_members = params.shape[0]
+    width = n_members if n_members == 1 else ((n_members + BANK_LANES - 1) // BANK_LANES) * BANK_LANES
+    out = np.empty((n_samples, n_members))
+    row_of = np.empty(width, dtype=np.int64)
+    for i in range(width):
+        row_of[i] = min(i, n_members - 1)
+    m = np.zeros(width)
+    he = np.zeros(width)
+    theta = np.zeros(width)
+    a = np.empty(width)
+    k = np.empty(width)
+    Ms = np.empty(width)
+    c = np.empty(width)
+    # per lane, the advance under way: start field, substep, direction, count, and the lane's constants
+    start = np.zeros(width)
+    step = np.zeros(width)
+    delta = np.zeros(width)
+    count = np.zeros(width, dtype=np.int64)
+    constants = np.zeros((8, width))
+    gap = np.zeros(width)
+    d_he = np.zeros(width)
+    m_old = np.zeros(width)
+    chi_r = np.empty(width)
+    small_loop = False
+    for i in range(width):
+        chi_r[i] = params[row_of[i], 10]
+        small_loop = small_loop or chi_r[i] != 0.0
+        row = params[row_of[i]]
+        if row[10] != 0.0 and (row[6] != 0.0 or row[7] != 0.0):
+            # extensions are nested one at a time: small loops never meet eddy currents or heating here
+            raise ValueError("the small-loop extension (chi_r) does not combine with eddy currents or heating")
+        a[i], k[i], Ms[i], c[i] = row[0], row[1], row[3], row[4]
+        start[i] = 0.0
+        target = fields[field_index[row_of[i]], 0] + row[5]
+        _plan(i, 0.0, target, a[i], k[i], row[2], Ms[i], c[i], max_field_step, start, step, delta, count, constants)
+        he[i] = target
+    _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind)
+    for i in range(n_members):
+        out[0, i] = m[i]
+    for t in range(1, n_samples):
+        dt = time[t] - time[t - 1]
+        eddy = False
+        for i in range(width):
+            row = params[row_of[i]]
+            f = field_index[row_of[i]]
+            heating, k_e = row[7], row[6]
+            if heating != 0.0:
+                _heat(i, row, fields[f, t - 1], fields[f, t], h_ref[f], dt, ambient, theta, a, k, Ms, c)
+            target = fields[f, t] + row[5]
+            m_old[i] = m[i]
+            if k_e > 0.0:
+                eddy = True
+                gap[i] = target - he[i]
+                direction = 1.0 if gap[i] > 0.0 else -1.0
+                chi = magnetization_slope(he[i], m[i], direction, a[i], k[i], row[2], Ms[i], c[i], kind)
+                d_he[i] = gap[i] / (1.0 + k_e * chi / dt)
+                target = he[i] + d_he[i]
+            _plan(i, he[i], target, a[i], k[i], row[2], Ms[i], c[i], max_field_step, start, step, delta, count,
+                  constants)
+        _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind)
+        if eddy:
+            _correct(m, m_old, he, gap, d_he, dt, a, k, Ms, c, params, row_of, max_field_step, start, step, delta,
+                     count, constants)
+            _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind)
+        for i in range(width):
+            row = params[row_of[i]]
+            if row[6] > 0.0:
+                he[i] = he[i] + d_he[i]
+            else:
+                he[i] = fields[field_index[row_of[i]], t] + row[5]
+        for i in range(n_members):
+            out[t, i] = m[i]
+    return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _correct(m, m_old, he, gap, d_he, dt, a, k, Ms, c, params, row_of, max_field_step, start, step, delta, count,
+             constants):
+    """The eddy-current lanes' corrector (_simulate_one's): the secant susceptibility of the predictor's step,
+    and that lane's step planned again from its start (the other lanes take no substep)."""
+    for i in range(m.shape[0]):
+        row = params[row_of[i]]
+        count[i] = 0
+        if row[6] > 0.0 and d_he[i] != 0.0:
+            chi = (m[i] - m_old[i]) / d_he[i]
+            if chi < 0.0:
+                chi = 0.0
+            d_he[i] = gap[i] / (1.0 + row[6] * chi / dt)
+            m[i] = m_old[i]
+            _plan(i, he[i], he[i] + d_he[i], a[i], k[i], row[2], Ms[i], c[i], max_field_step, start, step, delta,
+                  count, constants)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _plan(i, field_from, field_to, a, k, alpha, Ms, c, max_field_step, start, step, delta, count, constants):
+    """Lane ``i``'s advance from ``field_from`` to ``field_to``: its substeps (advance_one's) and constants."""
+    n, length, direction = monotone_substeps(field_to - field_from, max_field_step)
+    start[i] = field_from
+    step[i] = length
+    delta[i] = direction
+    count[i] = n
+    lane = lane_constants(a, k, alpha, Ms, c, direction)
+    constants[0, i] = lane.alpha
+    constants[1, i] = lane.inv_a
+    constants[2, i] = lane.Ms
+    constants[3, i] = lane.ms_over_a
+    constants[4, i] = lane.k_delta
+    constants[5, i] = lane.alphahat
+    constants[6, i] = lane.c
+    constants[7, i] = lane.alpha_c
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _heat(i, row, field_from, field_to, h_ref, dt, ambient, theta, a, k, Ms, c):
+    """Lane ``i``'s temperature rise over one sample and its material parameters there (_simulate_one's)."""
+    tau, beta, exponent = row[8], row[9], row[11]
+    beta_k = row[12] if row.shape[0] > 12 else 0.0
+    beta_c = row[13] if row.shape[0] > 13 else 0.0
+    if exponent == 2.0:
+        h_sq = mean_square_linear_kernel(field_from, field_to)
+    else:  # trapezoid over the sample interval
+        h_sq = h_ref * h_ref * 0.5 * ((abs(field_from) / h_ref) ** exponent + (abs(field_to) / h_ref) ** exponent)
+    decay = math.exp(-dt / tau)
+    theta[i] = theta[i] * decay + row[7] * h_sq * tau * (1.0 - decay)
+    a[i] = a_law_kernel(row[0], ambient + theta[i], ambient)
+    Ms[i] = row[3] * (1.0 - beta * theta[i])
+    if Ms[i] < 1e-3 * row[3]:
+        Ms[i] = 1e-3 * row[3]
+    if beta_k != 0.0:
+        k[i] = max(row[1] * (1.0 - beta_k * theta[i]), 1e-3 * row[1])
+    if beta_c != 0.0:
+        c[i] = min(max(row[4] * (1.0 - beta_c * theta[i]), 0.0), 0.999)
+
+
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind):
+    """The planned substeps of every lane: substeps outer, lanes inner (a lane with fewer keeps its M)."""
+    most = 0
+    for i in range(m.shape[0]):
+        most = max(most, count[i])
+    # one copy of the loop per curve and slope, as in the physics layer's bank: behind the tests the compiler
+    # knows both and keeps the lanes' loop free of branches
+    if small_loop:
+        if kind == ISING:
+            _small_loop_substeps(m, start, step, delta, count, constants, chi_r, kind, most)
+        else:
+            _small_loop_substeps(m, start, step, delta, count, constants, chi_r, kind, most)
+    elif kind == ISING:
+        _masked_substeps(m, start, step, delta, count, constants, kind, most)
+    else:
+        _masked_substeps(m, start, step, delta, count, constants, kind, most)
+
+
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _masked_substeps(m, start, step, delta, count, constants, kind, most):
+    alpha, inv_a, Ms, ms_over_a = constants[0], constants[1], constants[2], constants[3]
+    k_delta, alphahat, c, alpha_c = constants[4], constants[5], constants[6], constants[7]
+    for s in range(most):
+        for i in range(m.shape[0]):
+            lane = LaneConstants(alpha[i], inv_a[i], Ms[i], ms_over_a[i], k_delta[i], alphahat[i], c[i], alpha_c[i])
+            new = _midpoint(start[i] + s * step[i], m[i], step[i], delta[i], lane, kind)
+            m[i] = new if s < count[i] else m[i]
+
+
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _small_loop_substeps(m, start, step, delta, count, constants, chi_r, kind, most):
+    """:func:`_masked_substeps` with the small-loop slope (the physics layer's, chi_r per lane)."""
+    alpha, inv_a, Ms, ms_over_a = constants[0], constants[1], constants[2], constants[3]
+    k_delta, alphahat, c, alpha_c = constants[4], constants[5], constants[6], constants[7]
+    for s in range(most):
+        for i in range(m.shape[0]):
+            lane = LaneConstants(alpha[i], inv_a[i], Ms[i], ms_over_a[i], k_delta[i], alphahat[i], c[i], alpha_c[i])
+            field = start[i] + s * step[i]
+            slope_start = _small_loop_slope(field, m[i], delta[i], lane, chi_r[i], kind)
+            slope_mid = _small_loop_slope(field + 0.5 * step[i], m[i] + (0.5 * step[i]) * slope_start, delta[i], lane,
+                                          chi_r[i], kind)
+            new = m[i] + step[i] * slope_mid
+            m[i] = new if s < count[i] else m[i]
+
+
+def member_passes(params) -> int:
+    """Compiled passes over the record that :func:`simulate_members` makes for ``params`` (rows as there):
+    one per bank of up to :data:`BANK_LANES` members sharing a field (same bias H0, small-loop extension on
+    or off in all), one per member with eddy currents or heating. A pass costs about the same for one
+    member as for a full bank, so this is the simulation's cost."""
+    params = np.asarray(params)
+    extended = (params[:, 6] != 0.0) | (params[:, 7] != 0.0)
+    passes = int(np.count_nonzero(extended))
+    plain = params[~extended]
+    if plain.shape[0]:
+        keys = np.column_stack([plain[:, 5], plain[:, 10] == 0.0])
+        _, counts = np.unique(keys, axis=0, return_counts=True)
+        passes += int(np.sum((counts + BANK_LANES - 1) // BANK_LANES))
+    return passes
 
 
 #: The bank's members are padded to a multiple of this many lanes (copies of the last member,
@@ -312,8 +532,9 @@ def first_order_system(rate, gain):
     return np.array([[-rate]]), np.array([gain]), np.array([1.0])
 
 
-__all__ = ["AMBIENT_TEMPERATURE", "MAGNETIC_COLUMNS", "PINNING_DRIFT_COLUMNS", "first_order_system", "lti_response",
-           "second_order_system", "simulate_members", "step_classes", "varying_stiffness_response"]
+__all__ = ["AMBIENT_TEMPERATURE", "MAGNETIC_COLUMNS", "PINNING_DRIFT_COLUMNS", "first_order_system",
+           "heating_reference", "lane_passes", "lti_response", "member_passes", "second_order_system",
+           "simulate_lanes", "simulate_members", "step_classes", "varying_stiffness_response"]
 
 
 #: The compiled first-order-hold stepping loop, for models that build their own discretization.

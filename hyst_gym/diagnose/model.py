@@ -99,7 +99,8 @@ from .effects import (DRIFT_NAMES, EFFECTS, GAIN_DRIFT_NAMES, INPUT_DYNAMICS_NAM
                       MAINS_MIN_CYCLES, MAINS_NAMES, PAPER_MS, SENSOR_MAP_NAMES, applicable_effects, effect,
                       extension_parameters, mapped_field)
 from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, PINNING_DRIFT_COLUMNS, first_order_system, lti_response,
-                      second_order_system, simulate_members, step_classes, step_lti,
+                      heating_reference, lane_passes, member_passes, second_order_system, simulate_lanes,
+                      simulate_members, step_classes, step_lti,
                       varying_stiffness_response)
 from .parameter import Parameter, slope_factor
 from .recording import Recording
@@ -165,9 +166,38 @@ class Model:
         self.parameters = dict(parameters)
         self.max_field_step = float(max_field_step)
         self._classes = step_classes(recording.time)
+        self._full_classes = self._classes  # the whole record's, also where :attr:`horizon` cuts _classes
+        #: samples simulated from the record's start (None: all); see :meth:`up_to`
+        self.horizon = None
         self.channels = recording.channels
         if structure.transducer == "none" and "displacement" in self.channels:
             self.channels = tuple(c for c in self.channels if c != "displacement")
+
+    def up_to(self, samples: int) -> "Model":
+        """This model simulating only the record's first ``samples`` samples (its predictions that long).
+
+        Why: the fits read only the fitting block, the record's start, and every part of the model is causal
+        (the hysteresis, the heating, the filters and the mechanics start at the first sample and look only
+        back), so the samples after it need not be simulated. What the model takes from the whole record
+        (the input map's and the sensor map's ranges, the heating's reference field, the drift's time
+        fraction, the step classes) is still the whole record's: the predictions are those of the whole
+        model, cut, to the last bit."""
+        if not 1 <= samples <= self.recording.size:
+            raise ValueError(f"samples must be in [1, {self.recording.size}], got {samples!r}")
+        model = Model.__new__(Model)
+        model.__dict__.update(self.__dict__)
+        model.horizon = None if samples == self.recording.size else int(samples)
+        steps, index = self._full_classes
+        model._classes = (steps, index if model.horizon is None else index[:model.horizon - 1])
+        return model
+
+    @property
+    def _time(self):
+        """The sample times simulated (the whole record's, or its first :attr:`horizon`)."""
+        return self.recording.time if self.horizon is None else self.recording.time[:self.horizon]
+
+    def _cut(self, signal):
+        return signal if self.horizon is None else np.ascontiguousarray(signal[:self.horizon])
 
     # ---- parameter vectors
     @property
@@ -207,19 +237,52 @@ class Model:
         """Simulated M (A/m) for each values dict: shape (T, len(values_list))."""
         rows = np.array([self.magnetic_row(v) for v in values_list])
         kind = 0 if self.structure.curve == "ising" else 1
-        # the input side: its static map and its dynamics (zeros: the recorded field itself)
+        time = self._time
+        whole_time = self.recording.time
+        # the input side: its static map and its dynamics (zeros: the recorded field itself), on the whole record
+        # (the map's range is the whole record's) and then cut
         maps = np.array([[v.get(n, 0.0) for n in INPUT_MAP_NAMES + INPUT_DYNAMICS_NAMES] for v in values_list])
-        out = np.empty((self.recording.size, len(values_list)))
-        # members that share an input map share one field (one bank call per distinct map)
-        for shape in np.unique(maps, axis=0):
-            group = np.flatnonzero(np.all(maps == shape, axis=1))
-            unique, inverse = np.unique(rows[group], axis=0, return_inverse=True)
-            field = mapped_field(input_dynamics(self.recording.time, self.recording.field, *shape[4:],
-                                                classes=self._classes), *shape[:4])
-            simulated = simulate_members(self.recording.time, field, np.ascontiguousarray(unique), kind,
-                                         self.max_field_step, AMBIENT_TEMPERATURE)
-            out[:, group] = simulated[:, np.asarray(inverse).reshape(-1)]
+        shapes, map_of = np.unique(maps, axis=0, return_inverse=True)
+        map_of = np.asarray(map_of).reshape(-1)
+        fields = [mapped_field(input_dynamics(whole_time, self.recording.field, *shape[4:],
+                                              classes=self._full_classes), *shape[:4]) for shape in shapes]
+        references = np.array([heating_reference(np.ascontiguousarray(f)) for f in fields])
+        fields = [self._cut(f) for f in fields]
+        # each distinct (input map, magnetic row) simulated once
+        unique, inverse = np.unique(np.column_stack([map_of, rows]), axis=0, return_inverse=True)
+        inverse = np.asarray(inverse).reshape(-1)
+        members = np.ascontiguousarray(unique[:, 1:])
+        if len(fields) == 1 and member_passes(members) == 1 and (self.horizon is None or not np.any(members[:, 7])):
+            # one bank under one field (the physics layer's bank kernel)
+            simulated = simulate_members(time, np.ascontiguousarray(fields[0]), members, kind, self.max_field_step,
+                                         AMBIENT_TEMPERATURE)
+        else:
+            # members under several fields, or with eddy currents or heating: one pass of lanes, each its own
+            # field and substeps, with the same numbers as alone (kernels.simulate_lanes)
+            field_rows = np.ascontiguousarray(np.array(fields, dtype=np.float64).reshape(len(fields), -1))
+            simulated = simulate_lanes(time, field_rows, np.ascontiguousarray(unique[:, 0].astype(np.int64)),
+                                       members, references, kind,
+                                       self.max_field_step, AMBIENT_TEMPERATURE)
+        out = np.ascontiguousarray(simulated[:, inverse])
         return self._curve_mixture(values_list, out)
+
+    def simulation_passes(self, values_list) -> int:
+        """Compiled passes over the record that :meth:`magnetization` makes for ``values_list``
+        (:func:`~.kernels.member_passes` per distinct input map, and the mixture's second phase): its cost,
+        about the same for one member as for a bank of them."""
+        rows = np.array([self.magnetic_row(v) for v in values_list])
+        maps = np.array([[v.get(n, 0.0) for n in INPUT_MAP_NAMES + INPUT_DYNAMICS_NAMES] for v in values_list])
+        shapes, map_of = np.unique(maps, axis=0, return_inverse=True)
+        unique = np.unique(np.column_stack([np.asarray(map_of).reshape(-1), rows]), axis=0)
+        passes = member_passes(unique[:, 1:])
+        if len(shapes) > 1 or passes > 1:
+            passes = lane_passes(unique.shape[0])
+        mixed = [v for v in values_list if v.get("mix_weight", 0.0) != 0.0]
+        if mixed:
+            phase = Model(self.recording, replace(self.structure, extension=None), self.parameters,
+                          self.max_field_step)
+            passes += phase.simulation_passes([dict(v, a=v["a"] * v["mix_a_ratio"], mix_weight=0.0) for v in mixed])
+        return passes
 
     def _curve_mixture(self, values_list, out):
         """The ``anhysteretic_shape`` family: ``(1 - w)*M[curve] + w*M[base curve, a*r]`` with w = ``mix_weight``
@@ -231,6 +294,7 @@ class Model:
         if not mixed:
             return out
         phase = Model(self.recording, replace(self.structure, extension=None), self.parameters, self.max_field_step)
+        phase = phase.up_to(out.shape[0])
         second = phase.magnetization([dict(values_list[i], a=values_list[i]["a"] * values_list[i]["mix_a_ratio"],
                                            mix_weight=0.0) for i in mixed])
         for column, i in enumerate(mixed):
@@ -242,7 +306,7 @@ class Model:
         if magnetization is None:
             magnetization = self.magnetization([values])[:, 0]
         out = {}
-        time = self.recording.time
+        time = self._time
         if "magnetization" in self.channels:
             out["magnetization"] = self._sensor_terms("magnetization", values, sensor_dynamics(
                 time, magnetization, values.get("tau_m", 0.0), values.get("tau2_m", 0.0), self._classes))
@@ -273,7 +337,7 @@ class Model:
             fraction = self._record_fraction
             out = out + half_span * (drift[0] * fraction + drift[1] * fraction ** 2)
         if any(mains):
-            phase = 2 * np.pi * values["mains_hz"] * self.recording.time
+            phase = 2 * np.pi * values["mains_hz"] * self._time
             out = out + half_span * (mains[0] * np.cos(phase) + mains[1] * np.sin(phase)
                                      + mains[2] * np.cos(3 * phase) + mains[3] * np.sin(3 * phase))
         return out
@@ -282,7 +346,7 @@ class Model:
     def _record_fraction(self):
         """The record's time mapped to [0, 1]: the sensor drift's variable, 0 where the record starts."""
         time = self.recording.time
-        return (time - time[0]) / (float(time[-1] - time[0]) or 1.0)
+        return self._cut((time - time[0]) / (float(time[-1] - time[0]) or 1.0))
 
     def displacement(self, values, magnetization) -> np.ndarray:
         transducer = self.structure.transducer
@@ -296,11 +360,11 @@ class Model:
             # quadratic_magnetostriction: a second gain on (M - M0)^2 (kappa = zeta_q/gain)
             forcing = deviation + (values.get("zeta_q", 0.0) / gain) * deviation ** 2 if gain else deviation
         if transducer == "fem":
-            return _fem_tip_displacement(self.recording.time, forcing, gain, values, self._classes)
+            return _fem_tip_displacement(self._time, forcing, gain, values, self._classes)
         delta_e, delta_e_linear = values.get("delta_e", 0.0), values.get("delta_e_linear", 0.0)
         if (delta_e != 0.0 or delta_e_linear != 0.0) and transducer in ("lumped", "lumped_nonlinear"):
             relative_stiffness = relative_stiffness_change(magnetization, values)
-            return varying_stiffness_response(self.recording.time, gain * forcing, relative_stiffness,
+            return varying_stiffness_response(self._time, gain * forcing, relative_stiffness,
                                               values["khat"], values["chat"], classes=self._classes)
         if transducer == "first_order":
             A, B, C = first_order_system(values["lam"], gain)
@@ -315,7 +379,7 @@ class Model:
             A = np.block([[A, np.zeros((2, 2))], [np.zeros((2, 2)), A2]])
             B = np.concatenate([B, B2])
             C = np.concatenate([C, C2])
-        return lti_response(self.recording.time, forcing, A, B, C, start="steady", classes=self._classes)
+        return lti_response(self._time, forcing, A, B, C, start="steady", classes=self._classes)
 
 
 def relative_stiffness_change(magnetization, values):
