@@ -238,7 +238,11 @@ def global_search(model: Model, noise: dict, mask, names, n_points: int = 128, k
     # Parameter sets that break the kernel's validity (alpha*c*Man' >= 1) are skipped.
     candidates = [v for v in candidates if v["rho"] * v["c"] < 0.98]
     objective = Objective(model, noise, mask)
-    magnetization = model.magnetization(candidates)
+    # the fitting block's samples only, when it is the record's start (Objective): the output solver, which
+    # reads the whole record, needs the whole simulation
+    simulated = model if output_solver is not None else objective._simulated
+    simulated_mask = mask if output_solver is not None else objective._simulated_mask
+    magnetization = simulated.magnetization(candidates)
     scored = []
     # design points far from the data overflow (their mechanics or sums of squares): they score
     # inf and drop out, so numpy's warnings about them would only be noise on the user's terminal
@@ -250,8 +254,8 @@ def global_search(model: Model, noise: dict, mask, names, n_points: int = 128, k
             if output_solver is not None:
                 v = output_solver(v, m)
             elif linear_outputs and "displacement" in model.channels:
-                v = _solve_linear_outputs(model, v, m, noise, mask, linear_outputs)
-            r = objective.residual_of(model.predict(v, m))
+                v = _solve_linear_outputs(simulated, v, m, noise, simulated_mask, linear_outputs)
+            r = objective.residual_of(simulated.predict(v, m))
             scored.append((float(np.nan_to_num(r @ r, nan=np.inf)), v))
     scored.sort(key=lambda item: item[0])
     return [v for _, v in scored[:keep]]
@@ -259,7 +263,7 @@ def global_search(model: Model, noise: dict, mask, names, n_points: int = 128, k
 
 def _solve_linear_outputs(model, values, magnetization, noise, mask, pair):
     gain_name, offset_name = pair
-    data = model.recording.displacement[mask]
+    data = model.recording.displacement[:magnetization.shape[0]][mask]  # the simulated samples' (Model.up_to)
     trial = dict(values, **{gain_name: 1.0, offset_name: 0.0})
     response = model.displacement(trial, magnetization)[mask]       # gain 1, M0 = 0
     unit = model.displacement(dict(trial, **{offset_name: 1.0}), magnetization)[mask]

@@ -142,3 +142,23 @@ def test_up_to_checks_its_argument(recording):
     model, _ = _model(recording, None)
     with pytest.raises(ValueError, match="samples must be in"):
         model.up_to(0)
+
+
+def test_global_search_on_the_fitting_block_alone_gives_the_same_starts(recording, monkeypatch):
+    from hyst_gym.diagnose.fit import global_search
+
+    model, split = _model(recording, None)
+    names = ["a", "k", "rho", "Ms", "c"]
+    starts = global_search(model, split.noise, split.fit_mask, names, n_points=16, keep=3, linear_outputs=("zetahat",
+                                                                                                           "M0"))
+    plain_init = Objective.__init__
+
+    def whole_record(self, model, noise, mask):  # the objective simulating the whole record, as before
+        plain_init(self, model, noise, mask)
+        self._simulated, self._simulated_mask = model, mask
+
+    monkeypatch.setattr(Objective, "__init__", whole_record)
+    whole = global_search(model, split.noise, split.fit_mask, names, n_points=16, keep=3, linear_outputs=("zetahat",
+                                                                                                          "M0"))
+    assert starts == whole
+    assert len(starts) == 3
