@@ -326,7 +326,10 @@ class Model:
         mains = [values.get(n, 0.0) for n in MAINS_NAMES[channel]]
         if quadratic == 0.0 and cubic == 0.0 and not any(drift) and not any(gain) and not any(mains):
             return signal
-        centre, half_span = channel_range(self.recording.output(channel))
+        ranges = self.__dict__.setdefault("_channel_ranges", {})  # the recorded channel's, once per model
+        if channel not in ranges:
+            ranges[channel] = channel_range(self.recording.output(channel))
+        centre, half_span = ranges[channel]
         v = (signal - centre) / half_span
         out = signal + half_span * (quadratic * v ** 2 + cubic * v ** 3)
         if any(gain):
