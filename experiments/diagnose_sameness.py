@@ -12,6 +12,9 @@ both channels, ``--samples`` samples each; with ``--long``, also the three own-g
 :mod:`experiments.diagnose_speed` times at 20,000 samples (rod_dynamics on both channels, seeds 100-102).
 ``--compare`` prints every recording whose verdict, tie or confidence differs, and the largest relative
 change of a held-out RMSE; it exits 1 when a verdict or a tie differs.
+
+Committed: ``experiments/results/diagnose/sameness_before.json`` (the tool at 29ec4da, before the speed work of
+issue 31) and ``sameness_after.json`` (at 635a46e, after it), both with ``--long``.
 """
 
 from __future__ import annotations
