@@ -548,7 +548,9 @@ class BatchSimulator:
             return np.full(fractions.shape, config.temperature_for_a(config.a_true))
         t_lo, t_hi = config.initial_temperature_range
         if self.temperature_quantile is not None:
-            fractions = np.array([float(self.temperature_quantile(f)) for f in fractions])
+            # one call for all the rows: elementwise arithmetic, so a row's value does not depend on the others
+            # (tests/envs/test_posterior_speed.py checks it against the call per row)
+            fractions = np.asarray(self.temperature_quantile(fractions), dtype=np.float64)
         return t_lo + (t_hi - t_lo) * fractions
 
     def _checked_options(self, options: dict, n_rows: int = 1) -> dict:

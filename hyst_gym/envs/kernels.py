@@ -355,13 +355,14 @@ def excitation_step(actions, active, plant, view, buffers, params, estimator):
     return 0
 
 
-@background_kernel()
-def posterior_step(update_rows, measured, log_post, field, stepping, command, active, plant, plant_params,
+@background_kernel(nogil=True)
+def posterior_step(updating, measured, log_post, field, stepping, command, active, plant, plant_params,
                    likelihood):
     """One step of a grid posterior's node simulators (the plants only: no estimator bank, score or
-    observation), with its log-likelihood update first.
+    observation), with its log-likelihood update first. It runs without the GIL: the grid posterior may step
+    two disjoint blocks of sub-envs (views of its arrays) in two threads at once.
 
-    ``update_rows``: sub-envs whose ``log_post`` rows ((n, per), node-major as the node plants) gain the
+    ``updating``: (n,) bool, the sub-envs whose ``log_post`` rows ((n, per), node-major as the node plants) gain the
     Gaussian log-likelihood ``-0.5*sum(residual**2)/sigma**2`` of their normalized outputs ``measured``
     ((n, channels)) against the node plants' noise-free outputs (before this step). Then, if ``stepping``,
     every node plant of sub-env ``i`` takes the field command ``clip(field[i], -1, 1)*field_limit``
@@ -375,7 +376,9 @@ def posterior_step(update_rows, measured, log_post, field, stepping, command, ac
                 return 1
     per, channels, scales, variance = like.per, like.channels, like.scales, like.variance
     predicted = nodes.measured
-    for i in update_rows:
+    for i in range(log_post.shape[0]):
+        if not updating[i]:
+            continue
         for j in range(per):
             row = i * per + j
             total = 0.0
@@ -432,6 +435,176 @@ def posterior_vertex(log_post, joint, weights, a_nodes, mean, concentrated, esti
         estimate[i] = a_nodes[i, best] + offset * (a_nodes[i, best + 1] - a_nodes[i, best])
 
 
+#: numpy's pairwise summation: blocks of at most this many terms are summed with 8 accumulators
+PAIRWISE_BLOCK = 128
+
+
+@njit(cache=True)
+def pairwise_sum(values, start, count):
+    """``0.0 + sum(values[start:start + count])`` in the order of numpy's ``ndarray.sum`` along a contiguous last
+    axis (its pairwise summation, numpy/_core/src/umath/loops_utils.h.src, after the identity 0.0): the same
+    number bit for bit (``tests/envs/test_posterior_speed.py`` checks it against numpy). numpy's recursion (halves
+    of a multiple of 8 terms until a block holds at most :data:`PAIRWISE_BLOCK`) is unrolled on a stack here:
+    numba's cache does not load recursive functions reliably."""
+    if count <= PAIRWISE_BLOCK:
+        return 0.0 + _pairwise_block(values, start, count)
+    # frames: start, count, stage (0: left half next, 1: right half next, 2: both done), the halves' sums
+    frame_start = np.empty(64, dtype=np.int64)
+    frame_count = np.empty(64, dtype=np.int64)
+    frame_stage = np.empty(64, dtype=np.int64)
+    left, right = np.empty(64), np.empty(64)
+    frame_start[0], frame_count[0], frame_stage[0] = start, count, 0
+    top, result = 1, 0.0
+    while top > 0:
+        f = top - 1
+        size = frame_count[f]
+        half = size // 2
+        half -= half % 8
+        if size <= PAIRWISE_BLOCK or frame_stage[f] == 2:
+            value = _pairwise_block(values, frame_start[f], size) if size <= PAIRWISE_BLOCK else left[f] + right[f]
+            top -= 1
+            if top == 0:
+                result = value
+            elif frame_stage[top - 1] == 1:
+                left[top - 1] = value
+            else:
+                right[top - 1] = value
+        elif frame_stage[f] == 0:
+            frame_stage[f] = 1
+            frame_start[top], frame_count[top], frame_stage[top] = frame_start[f], half, 0
+            top += 1
+        else:
+            frame_stage[f] = 2
+            frame_start[top], frame_count[top], frame_stage[top] = frame_start[f] + half, size - half, 0
+            top += 1
+    return 0.0 + result
+
+
+@njit(cache=True, inline="always")
+def _pairwise_block(values, start, count):
+    """numpy's pairwise sum of at most :data:`PAIRWISE_BLOCK` terms (one block, no identity)."""
+    if count < 8:
+        total = 0.0
+        for i in range(start, start + count):
+            total += values[i]
+        return total
+    r0, r1, r2, r3 = values[start], values[start + 1], values[start + 2], values[start + 3]
+    r4, r5, r6, r7 = values[start + 4], values[start + 5], values[start + 6], values[start + 7]
+    i = 8
+    while i < count - count % 8:
+        j = start + i
+        r0 += values[j]
+        r1 += values[j + 1]
+        r2 += values[j + 2]
+        r3 += values[j + 3]
+        r4 += values[j + 4]
+        r5 += values[j + 5]
+        r6 += values[j + 6]
+        r7 += values[j + 7]
+        i += 8
+    total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < count:
+        total += values[start + i]
+        i += 1
+    return total
+
+
+@njit(cache=True, inline="always")
+def _maximum(current, value):
+    """``np.maximum(current, value)`` of two floats: NaN if either is NaN, else the larger."""
+    if current != current:
+        return current
+    if value != value or value > current:
+        return value
+    return current
+
+
+@background_kernel()
+def marginal_terms(joint, peak, threshold, values, index):
+    """The first half of the log-sum-exp over k of a grid posterior's joint log-posterior ``joint`` (n, nodes,
+    k_nodes): ``peak`` (n, nodes) its maximum over k (``joint.max(axis=2)``), and of ``joint - peak`` the entries
+    that are not ``<= threshold`` (NaN included) in order into ``values``, their flat positions into ``index``;
+    returns how many. Their exp (numpy's) goes to :func:`marginal_sums`."""
+    n, nodes, k_nodes = joint.shape
+    count = 0
+    for i in range(n):
+        for t in range(nodes):
+            top = joint[i, t, 0]
+            for q in range(1, k_nodes):
+                top = _maximum(top, joint[i, t, q])
+            peak[i, t] = top
+            for q in range(k_nodes):
+                shifted = joint[i, t, q] - top
+                if not shifted <= threshold:
+                    values[count] = shifted
+                    index[count] = (i * nodes + t) * k_nodes + q
+                    count += 1
+    return count
+
+
+@background_kernel()
+def marginal_sums(exps, index, terms, sums):
+    """The second half: ``terms`` (n*nodes*k_nodes,) the exp of ``joint - peak`` (``exps`` at ``index``, 0.0
+    elsewhere, where it underflows), and ``sums`` (n, nodes) its sum over k in numpy's order."""
+    for j in range(terms.shape[0]):
+        terms[j] = 0.0
+    for j in range(exps.shape[0]):
+        terms[index[j]] = exps[j]
+    n, nodes = sums.shape
+    k_nodes = terms.shape[0] // (n * nodes)
+    for i in range(n):
+        for t in range(nodes):
+            sums[i, t] = pairwise_sum(terms, (i * nodes + t) * k_nodes, k_nodes)
+
+
+@background_kernel()
+def weight_terms(log_post, threshold, values, index):
+    """Of ``log_post - log_post.max(axis=1)`` ((n, nodes), the marginal log-posterior over the T0 nodes) the
+    entries that are not ``<= threshold`` (NaN included), in order, into ``values`` and their flat positions into
+    ``index``; returns how many. Their exp (numpy's) goes to :func:`posterior_moments`."""
+    n, nodes = log_post.shape
+    count = 0
+    for i in range(n):
+        top = log_post[i, 0]
+        for t in range(1, nodes):
+            top = _maximum(top, log_post[i, t])
+        for t in range(nodes):
+            shifted = log_post[i, t] - top
+            if not shifted <= threshold:
+                values[count] = shifted
+                index[count] = i * nodes + t
+                count += 1
+    return count
+
+
+@background_kernel()
+def posterior_moments(exps, index, a_nodes, weights, scratch, mean, spread):
+    """The posterior's weights over the T0 nodes ``weights`` (n, nodes): ``exps`` at ``index`` (0.0 elsewhere)
+    over their sum; the posterior mean of a ``mean`` (n,) and its standard deviation with the node cell's
+    ``spread`` (n,): ``sqrt(sum(w*(a - mean)**2) + spacing**2/12)``, spacing ``|a_1 - a_0|``. ``a_nodes`` (n, nodes):
+    a at the T0 nodes (A/m); ``scratch`` (nodes,). The numbers of numpy's ``w = e/e.sum(axis=1)``,
+    ``(w*a).sum(axis=1)`` and ``(w*(a - mean)**2).sum(axis=1)`` (:func:`pairwise_sum`)."""
+    n, nodes = weights.shape
+    flat = weights.reshape(n * nodes)
+    for j in range(flat.shape[0]):
+        flat[j] = 0.0
+    for j in range(exps.shape[0]):
+        flat[index[j]] = exps[j]
+    for i in range(n):
+        total = pairwise_sum(flat, i * nodes, nodes)
+        for t in range(nodes):
+            weights[i, t] = weights[i, t] / total
+        for t in range(nodes):
+            scratch[t] = weights[i, t] * a_nodes[i, t]
+        centre = pairwise_sum(scratch, 0, nodes)
+        mean[i] = centre
+        for t in range(nodes):
+            deviation = a_nodes[i, t] - centre
+            scratch[t] = weights[i, t] * (deviation * deviation)
+        spacing = abs(a_nodes[i, 1] - a_nodes[i, 0])
+        spread[i] = math.sqrt(pairwise_sum(scratch, 0, nodes) + spacing * spacing / 12.0)
+
+
 @njit(cache=True, inline="always")
 def _joint_vertex(joint, best_marginal, offset_marginal):
     """(T0 node, offset in T0 cells) of the vertex of the quadratic through ``joint`` (nodes, k_nodes) about its
@@ -474,8 +647,8 @@ def identification_step(actions, active, plant, view, buffers, params, bank, ban
 
 __all__ = ["EnvParams", "EstimateView", "ObservationLayout", "PlantParams", "PlantState", "ScoreParams", "StepBuffers",
            "LikelihoodParams", "clip_actions", "excitation_step", "fill_info", "fill_observation", "finish_step",
-           "finish_plants", "identification_step", "limit_fields", "plant_step", "posterior_step", "posterior_vertex",
-           "score_step"]
+           "finish_plants", "identification_step", "limit_fields", "marginal_sums", "marginal_terms", "pairwise_sum",
+           "plant_step", "posterior_moments", "posterior_step", "posterior_vertex", "score_step", "weight_terms"]
 
 
 #: printed once per process, on stderr, before the first environment compiles its kernels (HYST_GYM_COMPILE=foreground)

@@ -22,10 +22,15 @@ a over the T0 nodes (A/m).
 
 from __future__ import annotations
 
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from ..estimation import as_kernel_tuples
-from .kernels import LikelihoodParams, posterior_step, posterior_vertex
+from .kernels import (LikelihoodParams, marginal_sums, marginal_terms, posterior_moments, posterior_step,
+                      posterior_vertex, weight_terms)
 
 #: grid nodes of the start temperature per sub-environment
 POSTERIOR_NODES = 64
@@ -33,6 +38,45 @@ POSTERIOR_NODES = 64
 CONCENTRATED = 0.5
 #: grid nodes (start temperature, k) per sub-environment on a task with a k prior
 K_TASK_NODES = (24, 9)
+#: the node plants of a grid posterior from which its step runs in :func:`step_threads` threads (blocks of
+#: sub-envs; below it, the threads' hand-over costs more than the second core gains)
+SPLIT_MIN_NODES = 4096
+#: the most threads a grid posterior's step uses (the machine this package is measured on has 2 cores)
+MAX_STEP_THREADS = 2
+#: the node simulators' plant parameters that are per node plant (the others are shared by all)
+PER_NODE_PARAMS = ("k", "alpha", "Ms", "c")
+
+
+#: below this, exp(x) is 0.0 in double precision (it is for every x below about -745.13): the posterior's exps
+#: skip those entries, where numpy's exp takes a slow path (about 10x per entry; most of a concentrated
+#: posterior's nodes lie there)
+EXP_ZERO_BELOW = -746.0
+
+
+def step_threads() -> int:
+    """Threads a grid posterior's step uses: the CPUs this process may run on, at most :data:`MAX_STEP_THREADS`."""
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except AttributeError:  # no sched_getaffinity (macOS, Windows)
+        cpus = os.cpu_count() or 1
+    return max(1, min(MAX_STEP_THREADS, cpus))
+
+
+_pool = None
+_pool_pid = None
+_pool_lock = threading.Lock()
+
+
+def step_pool() -> ThreadPoolExecutor:
+    """The worker threads of the grid posteriors' steps (one process-wide pool of ``step_threads() - 1``, made again
+    in a forked child, whose copy has no threads)."""
+    global _pool, _pool_pid
+    with _pool_lock:
+        if _pool is None or _pool_pid != os.getpid():
+            _pool = ThreadPoolExecutor(max_workers=max(1, step_threads() - 1),
+                                       thread_name_prefix="hyst-gym-posterior")
+            _pool_pid = os.getpid()
+        return _pool
 
 
 def grid_sizes(k_prior, nodes: int | None = None, k_nodes: int | None = None) -> tuple[int, int]:
@@ -74,12 +118,15 @@ class GridPosterior:
         self.node_temperature = low + (high - low) * (np.arange(self.nodes) + 0.5) / self.nodes
         self.log_prior = np.log(1.0 - np.cos(2 * np.pi * (np.arange(self.nodes) + 0.5) / self.nodes))
         per = self.nodes * self.k_nodes
+        d_lo, d_hi = config.ambient_drift_rate_range
+        if d_lo != d_hi:
+            raise ValueError("GridPosterior: the grid posterior assumes a known ambient drift rate (the ends of "
+                             f"ambient_drift_rate_range equal), got ambient_drift_rate_range {(d_lo, d_hi)}")
         # noise-free in every channel (the temperature sensor's too: its draws would be read by nobody)
         self.sim = BatchSimulator(config.replace(output_noise=0.0, temperature_sensor_noise=0.0), IDENTIFICATION,
                                   self.n * per)
-        for row in range(self.n * per):
-            self.sim.set_generator(row, np.random.default_rng(row))
         self.sim.set_pinning(np.arange(self.n * per), np.tile(self.node_k, self.n * self.nodes))
+        self._fresh_plants = self._start_state(per)
         self.log_post = np.zeros((self.n, self.nodes, self.k_nodes))
         self._commands = np.zeros((self.n * per, 2))
         # The compiled step (kernels.posterior_step) moves only the node plants: the simulator's estimator
@@ -88,22 +135,64 @@ class GridPosterior:
         self._likelihood = LikelihoodParams(channels=channels, scales=self.sim.scales[channels],
                                             variance=float(config.output_noise) ** 2,
                                             per=per)
-        self._kernel_args = (np.ones(self.n * per, dtype=bool),
+        self._node_command = np.zeros(self.n * per)  # the kernel's scratch (field commands)
+        self._kernel_args = (self._node_command, np.ones(self.n * per, dtype=bool),
                              *as_kernel_tuples(self.sim._plant, self.sim._plant_params, self._likelihood))
-        self._node_command = np.zeros(self.n * per)
+        self._blocks = self._split(per)
         self._no_rows = np.zeros(0, dtype=np.int64)
+        self._updating = np.zeros(self.n, dtype=bool)
         self._no_field = np.zeros(self.n)
         self._log_post_flat = self.log_post.reshape(self.n, per)  # a view: the kernel writes log_post
         self._marginal_cache = None
+        size = self.n * per
+        self._scratch = {"peak": np.empty((self.n, self.nodes)), "sums": np.empty((self.n, self.nodes)),
+                         "terms": np.empty(size), "row": np.empty(self.nodes),
+                         "gather": (np.empty(size), np.empty(size, dtype=np.int64))}
+
+    def _start_state(self, per: int) -> list:
+        """(view (n, per, ...) of a node-plant array, its value at a restart (per, ...)) for every array of the
+        node plants that a reset sets: the values of one :meth:`BatchSimulator.reset` of sub-env 0's nodes at
+        their grid nodes (the reset option ``initial_temperature``, one value per node), taken once here.
+
+        A node's start is the same at every restart: nothing of it is drawn. Its start temperature is the
+        option, its drift rate the one value of ``ambient_drift_rate_range`` (checked above), k is set once
+        (no k prior on the node simulator), and the node simulator is noise-free, so its random streams are
+        never read (only rows 0..per-1 get one, for this reset). The node simulator's model bank, info and
+        observation are not node-plant state: :func:`~.kernels.posterior_step` neither reads nor writes them."""
+        sim = self.sim
+        for row in range(per):
+            sim.set_generator(row, np.random.default_rng(row))
+        sim.reset(np.arange(per), {"initial_temperature": np.repeat(self.node_temperature, self.k_nodes)})
+        n = self.n
+        plants = [sim.field, sim.magnetization, sim.state, sim.temperature, sim.ambient0, sim.drift_rate, sim.steps,
+                  sim.a_true, sim.measured, sim.measured_temperature]
+        views = [array.reshape((n, per) + array.shape[1:]) for array in plants]  # C-contiguous: views
+        return [(view, view[0].copy()) for view in views]
+
+    def _split(self, per: int) -> list:
+        """The blocks of sub-envs that :meth:`advance` steps in :func:`step_threads` threads at once: (slice of
+        sub-envs, the kernel's arguments after ``stepping`` for their node plants: views of the arrays); empty
+        (one call for all) with one thread or fewer than :data:`SPLIT_MIN_NODES` node plants."""
+        threads = min(step_threads(), self.n)
+        if threads < 2 or self.n * per < SPLIT_MIN_NODES:
+            return []
+        edges = [self.n * b // threads for b in range(threads + 1)]
+        plant, params = self.sim._plant, self.sim._plant_params
+        blocks = []
+        for lo, hi in zip(edges[:-1], edges[1:]):
+            nodes = slice(lo * per, hi * per)
+            block_plant = plant._replace(**{name: getattr(plant, name)[nodes] for name in plant._fields})
+            block_params = params._replace(**{name: getattr(params, name)[nodes] for name in PER_NODE_PARAMS})
+            blocks.append((slice(lo, hi), (self._node_command[nodes], self._kernel_args[1][nodes],
+                                           *as_kernel_tuples(block_plant, block_params, self._likelihood))))
+        return blocks
 
     def restart(self, rows) -> None:
-        """New episodes in sub-envs ``rows``: every node simulator at its grid node, the log-prior."""
+        """New episodes in sub-envs ``rows``: every node simulator at its grid node (:meth:`_start_state`), the
+        log-prior."""
         rows = np.asarray(rows, dtype=np.int64)
-        per = self.nodes * self.k_nodes
-        sub = (rows[:, None] * per + np.arange(per)[None, :]).ravel()
-        # every node simulator starts at its grid node's temperature (the reset option, one value per row)
-        temperatures = np.tile(np.repeat(self.node_temperature, self.k_nodes), rows.shape[0])
-        self.sim.reset(sub, {"initial_temperature": temperatures})
+        for view, start in self._fresh_plants:
+            view[rows] = start
         self.log_post[rows] = self.log_prior[:, None]
         self._marginal_cache = None
 
@@ -126,36 +215,63 @@ class GridPosterior:
                              f"{self.config.output_noise!r}")
         measured = np.zeros((self.n, len(self.channels))) if measured is None else \
             np.asarray(measured, dtype=np.float64)
+        if measured.shape != (self.n, len(self.channels)):
+            raise ValueError(f"GridPosterior.update: measured must have shape {(self.n, len(self.channels))}, got "
+                             f"{measured.shape}")
+        updating = self._updating
+        updating[:] = False
+        updating[rows] = True
         self._marginal_cache = None
         stepping = field is not None
         field = self._no_field if field is None else np.asarray(field, dtype=np.float64)
-        if posterior_step(rows, measured, self._log_post_flat, field, stepping, self._node_command,
-                          *self._kernel_args):
+        if field.shape != (self.n,):
+            raise ValueError(f"GridPosterior.step: field must have shape {(self.n,)}, got {field.shape}")
+        if stepping and np.isnan(field).any():  # before any block moves (the kernel would refuse it too)
             self._commands[:, 0] = np.repeat(field, self.nodes * self.k_nodes)
             self.sim.check_actions(self._commands)  # raises, naming the value
+        # the blocks in threads once the kernel runs compiled (without the GIL; its first call, which may compile
+        # it or stand in with its Python twin, and the twin itself run here, one call for all)
+        if not self._blocks or not getattr(posterior_step, "overloads", None):
+            posterior_step(updating, measured, self._log_post_flat, field, stepping, *self._kernel_args)
+            return
+        log_post = self._log_post_flat
+        calls = [(posterior_step, updating[rows], measured[rows], log_post[rows], field[rows], stepping, *arguments)
+                 for rows, arguments in self._blocks]
+        others = [step_pool().submit(*call) for call in calls[1:]]
+        calls[0][0](*calls[0][1:])
+        for other in others:
+            other.result()
 
     def _marginal(self):
-        """(a at the T0 nodes (n, nodes), the log-posterior marginal over k (n, nodes), its weights); computed
-        once per step or restart (estimate and spread both read it)."""
+        """(a at the T0 nodes (n, nodes), the log-posterior marginal over k (n, nodes), its weights, the posterior
+        mean of a (n,), its spread (:meth:`spread`)); computed once per step or restart (estimate and spread both
+        read it). The numbers of the numpy form ``peak = joint.max(axis=2)``,
+        ``log_post = peak + log(exp(joint - peak).sum(axis=2))``, ``w = exp(log_post - log_post.max(axis=1))``,
+        ``w /= w.sum(axis=1)``, ``mean = (w*a).sum(axis=1)``, ``sqrt((w*(a - mean)**2).sum(axis=1) + spacing**2/12)``
+        bit for bit: numpy's exp and log, the rest in compiled kernels that keep numpy's order of summation
+        (:func:`~.kernels.pairwise_sum`), and exp only where it does not underflow (:data:`EXP_ZERO_BELOW`)."""
         if self._marginal_cache is not None:
             return self._marginal_cache
         joint = self.log_post
         a_nodes = self.sim.a_true.reshape(-1, self.nodes, self.k_nodes)[:, :, 0]  # a depends on T0 only
+        values, index = self._scratch["gather"]
         if self.k_nodes == 1:  # the log-sum-exp over one k node is the node itself: peak + log(1)
             log_post = joint[:, :, 0]
         else:
-            peak = joint.max(axis=2)
-            log_post = peak + np.log(np.exp(joint - peak[:, :, None]).sum(axis=2))
-        weights = np.exp(log_post - log_post.max(axis=1, keepdims=True))
-        weights /= weights.sum(axis=1, keepdims=True)
-        self._marginal_cache = (a_nodes, log_post, weights)
+            peak, sums = self._scratch["peak"], self._scratch["sums"]
+            count = marginal_terms(joint, peak, EXP_ZERO_BELOW, values, index)
+            marginal_sums(np.exp(values[:count]), index, self._scratch["terms"], sums)
+            log_post = peak + np.log(sums)
+        count = weight_terms(log_post, EXP_ZERO_BELOW, values, index)
+        weights, mean, spread = np.empty((self.n, self.nodes)), np.empty(self.n), np.empty(self.n)
+        posterior_moments(np.exp(values[:count]), index, a_nodes, weights, self._scratch["row"], mean, spread)
+        self._marginal_cache = (a_nodes, log_post, weights, mean, spread)
         return self._marginal_cache
 
     def estimate(self) -> np.ndarray:
         """The estimate of a per sub-environment (A/m), from the nodes' a after their last step (module doc;
         the mean and the vertex are :func:`~.kernels.posterior_vertex`'s)."""
-        a_nodes, log_post, weights = self._marginal()
-        mean = (weights * a_nodes).sum(axis=1)
+        a_nodes, log_post, weights, mean, _ = self._marginal()
         estimate = np.empty(self.n)
         posterior_vertex(log_post, self.log_post, weights, a_nodes, mean, CONCENTRATED, estimate)
         return estimate
@@ -163,11 +279,7 @@ class GridPosterior:
     def spread(self) -> np.ndarray:
         """The posterior standard deviation of a per sub-environment (A/m; at least the node spacing's
         uniform-cell width, spacing/sqrt(12), once the mass sits on one node)."""
-        a_nodes, _, weights = self._marginal()
-        mean = (weights * a_nodes).sum(axis=1, keepdims=True)
-        spacing = np.abs(a_nodes[:, 1] - a_nodes[:, 0])
-        variance = (weights * (a_nodes - mean) ** 2).sum(axis=1)
-        return np.sqrt(variance + spacing ** 2 / 12.0)
+        return self._marginal()[4].copy()
 
 
 __all__ = ["CONCENTRATED", "K_TASK_NODES", "POSTERIOR_NODES", "GridPosterior"]
