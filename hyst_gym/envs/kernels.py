@@ -404,7 +404,7 @@ def posterior_step(updating, measured, log_post, field, stepping, command, activ
     return 0
 
 
-@background_kernel()
+@background_kernel(nogil=True)
 def posterior_vertex(log_post, joint, weights, a_nodes, mean, concentrated, estimate):
     """The grid posterior's estimate of a (:meth:`~hyst_gym.envs.posterior.GridPosterior.estimate`): per
     sub-env ``i`` where the largest of ``weights[i]`` exceeds ``concentrated``, the vertex of the parabola
@@ -519,7 +519,7 @@ def _maximum(current, value):
     return current
 
 
-@background_kernel()
+@background_kernel(nogil=True)
 def marginal_terms(joint, peak, threshold, values, index):
     """The first half of the log-sum-exp over k of a grid posterior's joint log-posterior ``joint`` (n, nodes,
     k_nodes): ``peak`` (n, nodes) its maximum over k (``joint.max(axis=2)``), and of ``joint - peak`` the entries
@@ -542,7 +542,7 @@ def marginal_terms(joint, peak, threshold, values, index):
     return count
 
 
-@background_kernel()
+@background_kernel(nogil=True)
 def marginal_sums(exps, index, terms, sums):
     """The second half: ``terms`` (n*nodes*k_nodes,) the exp of ``joint - peak`` (``exps`` at ``index``, 0.0
     elsewhere, where it underflows), and ``sums`` (n, nodes) its sum over k in numpy's order."""
@@ -557,7 +557,7 @@ def marginal_sums(exps, index, terms, sums):
             sums[i, t] = pairwise_sum(terms, (i * nodes + t) * k_nodes, k_nodes)
 
 
-@background_kernel()
+@background_kernel(nogil=True)
 def weight_terms(log_post, threshold, values, index):
     """Of ``log_post - log_post.max(axis=1)`` ((n, nodes), the marginal log-posterior over the T0 nodes) the
     entries that are not ``<= threshold`` (NaN included), in order, into ``values`` and their flat positions into
@@ -577,7 +577,7 @@ def weight_terms(log_post, threshold, values, index):
     return count
 
 
-@background_kernel()
+@background_kernel(nogil=True)
 def posterior_moments(exps, index, a_nodes, weights, scratch, mean, spread):
     """The posterior's weights over the T0 nodes ``weights`` (n, nodes): ``exps`` at ``index`` (0.0 elsewhere)
     over their sum; the posterior mean of a ``mean`` (n,) and its standard deviation with the node cell's

@@ -143,11 +143,22 @@ class GridPosterior:
         self._updating = np.zeros(self.n, dtype=bool)
         self._no_field = np.zeros(self.n)
         self._log_post_flat = self.log_post.reshape(self.n, per)  # a view: the kernel writes log_post
-        self._marginal_cache = None
-        size = self.n * per
-        self._scratch = {"peak": np.empty((self.n, self.nodes)), "sums": np.empty((self.n, self.nodes)),
-                         "terms": np.empty(size), "row": np.empty(self.nodes),
-                         "gather": (np.empty(size), np.empty(size, dtype=np.int64))}
+        self._a_nodes = self.sim.a_true.reshape(self.n, self.nodes, self.k_nodes)[:, :, 0]  # a depends on T0 only
+        self._scratch = self._scratch_for(self.n)
+        self._results = {"log_post": self.log_post[:, :, 0] if self.k_nodes == 1 else np.empty((self.n, self.nodes)),
+                         "weights": np.empty((self.n, self.nodes)), "mean": np.empty(self.n),
+                         "spread": np.empty(self.n), "estimate": np.empty(self.n)}
+        self._results_valid = False
+        self._start_results = self._results_at_start()
+
+    def _results_at_start(self) -> dict:
+        """The results of :meth:`_marginal_rows` of a restarted sub-env (they depend on its row alone, and a restart
+        puts every row in the same state), from sub-env 0 at its start (:meth:`_start_state`)."""
+        self.log_post[0] = self.log_prior[:, None]
+        self._marginal_rows(slice(0, 1), self._scratch_for(1))
+        self.log_post[0] = 0.0
+        return {name: values[0].copy() for name, values in self._results.items()
+                if not (name == "log_post" and self.k_nodes == 1)}  # with one k node it is log_post itself
 
     def _start_state(self, per: int) -> list:
         """(view (n, per, ...) of a node-plant array, its value at a restart (per, ...)) for every array of the
@@ -184,7 +195,8 @@ class GridPosterior:
             block_plant = plant._replace(**{name: getattr(plant, name)[nodes] for name in plant._fields})
             block_params = params._replace(**{name: getattr(params, name)[nodes] for name in PER_NODE_PARAMS})
             blocks.append((slice(lo, hi), (self._node_command[nodes], self._kernel_args[1][nodes],
-                                           *as_kernel_tuples(block_plant, block_params, self._likelihood))))
+                                           *as_kernel_tuples(block_plant, block_params, self._likelihood)),
+                           self._scratch_for(hi - lo)))
         return blocks
 
     def restart(self, rows) -> None:
@@ -194,7 +206,9 @@ class GridPosterior:
         for view, start in self._fresh_plants:
             view[rows] = start
         self.log_post[rows] = self.log_prior[:, None]
-        self._marginal_cache = None
+        if self._results_valid:  # a restarted row's results are the start's (a row's depend on that row alone)
+            for name, start in self._start_results.items():
+                self._results[name][rows] = start
 
     def update(self, measured: np.ndarray, rows) -> None:
         """Add the log-likelihood of the normalized outputs ``measured`` ((n, channels), the sensors'
@@ -221,7 +235,7 @@ class GridPosterior:
         updating = self._updating
         updating[:] = False
         updating[rows] = True
-        self._marginal_cache = None
+        self._results_valid = False
         stepping = field is not None
         field = self._no_field if field is None else np.asarray(field, dtype=np.float64)
         if field.shape != (self.n,):
@@ -234,52 +248,66 @@ class GridPosterior:
         if not self._blocks or not getattr(posterior_step, "overloads", None):
             posterior_step(updating, measured, self._log_post_flat, field, stepping, *self._kernel_args)
             return
-        log_post = self._log_post_flat
-        calls = [(posterior_step, updating[rows], measured[rows], log_post[rows], field[rows], stepping, *arguments)
-                 for rows, arguments in self._blocks]
-        others = [step_pool().submit(*call) for call in calls[1:]]
-        calls[0][0](*calls[0][1:])
+        calls = [(updating[rows], measured[rows], field[rows], stepping, rows, arguments, scratch)
+                 for rows, arguments, scratch in self._blocks]
+        others = [step_pool().submit(self._advance_block, *call) for call in calls[1:]]
+        self._advance_block(*calls[0])
         for other in others:
             other.result()
+        self._results_valid = True
 
-    def _marginal(self):
-        """(a at the T0 nodes (n, nodes), the log-posterior marginal over k (n, nodes), its weights, the posterior
-        mean of a (n,), its spread (:meth:`spread`)); computed once per step or restart (estimate and spread both
-        read it). The numbers of the numpy form ``peak = joint.max(axis=2)``,
-        ``log_post = peak + log(exp(joint - peak).sum(axis=2))``, ``w = exp(log_post - log_post.max(axis=1))``,
-        ``w /= w.sum(axis=1)``, ``mean = (w*a).sum(axis=1)``, ``sqrt((w*(a - mean)**2).sum(axis=1) + spacing**2/12)``
-        bit for bit: numpy's exp and log, the rest in compiled kernels that keep numpy's order of summation
-        (:func:`~.kernels.pairwise_sum`), and exp only where it does not underflow (:data:`EXP_ZERO_BELOW`)."""
-        if self._marginal_cache is not None:
-            return self._marginal_cache
-        joint = self.log_post
-        a_nodes = self.sim.a_true.reshape(-1, self.nodes, self.k_nodes)[:, :, 0]  # a depends on T0 only
-        values, index = self._scratch["gather"]
-        if self.k_nodes == 1:  # the log-sum-exp over one k node is the node itself: peak + log(1)
-            log_post = joint[:, :, 0]
-        else:
-            peak, sums = self._scratch["peak"], self._scratch["sums"]
+    def _advance_block(self, updating, measured, field, stepping, rows, arguments, scratch) -> None:
+        """:func:`~.kernels.posterior_step` and then :meth:`_marginal_rows` of one block of sub-envs (in a thread)."""
+        posterior_step(updating, measured, self._log_post_flat[rows], field, stepping, *arguments)
+        self._marginal_rows(rows, scratch)
+
+    def _marginal_rows(self, rows: slice, scratch: dict) -> None:
+        """The marginal of sub-envs ``rows`` into the results (:meth:`_marginal`): the log-posterior marginal over k,
+        the weights over the T0 nodes, the posterior mean and spread of a, and the estimate. The numbers of the numpy
+        form ``peak = joint.max(axis=2)``, ``log_post = peak + log(exp(joint - peak).sum(axis=2))``,
+        ``w = exp(log_post - log_post.max(axis=1))``, ``w /= w.sum(axis=1)``, ``mean = (w*a).sum(axis=1)``,
+        ``sqrt((w*(a - mean)**2).sum(axis=1) + spacing**2/12)`` bit for bit: numpy's exp and log, the rest in compiled
+        kernels that keep numpy's order of summation (:func:`~.kernels.pairwise_sum`), and exp only where it does not
+        underflow (:data:`EXP_ZERO_BELOW`). Each row's numbers depend on that row alone. ``scratch``: the block's
+        (:meth:`_scratch_for`)."""
+        results = self._results
+        joint, a_nodes, log_post = self.log_post[rows], self._a_nodes[rows], results["log_post"][rows]
+        values, index = scratch["gather"]
+        if self.k_nodes > 1:  # with one k node, log_post is a view of the joint (the node itself: peak + log(1))
+            peak, sums = scratch["peak"], scratch["sums"]
             count = marginal_terms(joint, peak, EXP_ZERO_BELOW, values, index)
-            marginal_sums(np.exp(values[:count]), index, self._scratch["terms"], sums)
-            log_post = peak + np.log(sums)
+            marginal_sums(np.exp(values[:count]), index, scratch["terms"], sums)
+            np.add(peak, np.log(sums), out=log_post)
         count = weight_terms(log_post, EXP_ZERO_BELOW, values, index)
-        weights, mean, spread = np.empty((self.n, self.nodes)), np.empty(self.n), np.empty(self.n)
-        posterior_moments(np.exp(values[:count]), index, a_nodes, weights, self._scratch["row"], mean, spread)
-        self._marginal_cache = (a_nodes, log_post, weights, mean, spread)
-        return self._marginal_cache
+        weights, mean = results["weights"][rows], results["mean"][rows]
+        posterior_moments(np.exp(values[:count]), index, a_nodes, weights, scratch["row"], mean,
+                          results["spread"][rows])
+        posterior_vertex(log_post, joint, weights, a_nodes, mean, CONCENTRATED, results["estimate"][rows])
+
+    def _scratch_for(self, rows: int) -> dict:
+        """Work arrays of :meth:`_marginal_rows` for a block of ``rows`` sub-envs."""
+        size = rows * self.nodes * self.k_nodes
+        return {"peak": np.empty((rows, self.nodes)), "sums": np.empty((rows, self.nodes)), "terms": np.empty(size),
+                "row": np.empty(self.nodes), "gather": (np.empty(size), np.empty(size, dtype=np.int64))}
+
+    def _marginal(self) -> dict:
+        """The results of :meth:`_marginal_rows` for every sub-env (``log_post``, ``weights``, ``mean``, ``spread``,
+        ``estimate``); computed once per step (in the step's threads where it has them) and kept across a restart
+        (the restarted rows get the start's, :attr:`_start_results`)."""
+        if not self._results_valid:
+            self._marginal_rows(slice(0, self.n), self._scratch)
+            self._results_valid = True
+        return self._results
 
     def estimate(self) -> np.ndarray:
         """The estimate of a per sub-environment (A/m), from the nodes' a after their last step (module doc;
         the mean and the vertex are :func:`~.kernels.posterior_vertex`'s)."""
-        a_nodes, log_post, weights, mean, _ = self._marginal()
-        estimate = np.empty(self.n)
-        posterior_vertex(log_post, self.log_post, weights, a_nodes, mean, CONCENTRATED, estimate)
-        return estimate
+        return self._marginal()["estimate"].copy()
 
     def spread(self) -> np.ndarray:
         """The posterior standard deviation of a per sub-environment (A/m; at least the node spacing's
         uniform-cell width, spacing/sqrt(12), once the mass sits on one node)."""
-        return self._marginal()[4].copy()
+        return self._marginal()["spread"].copy()
 
 
 __all__ = ["CONCENTRATED", "K_TASK_NODES", "POSTERIOR_NODES", "GridPosterior"]

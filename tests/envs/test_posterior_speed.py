@@ -60,11 +60,11 @@ def test_the_compiled_marginal_is_the_numpy_form_bit_for_bit(task, k_prior):
     zero, positive = 0, 0
     for joint in cases:
         posterior.log_post[...] = joint
-        posterior._marginal_cache = None
-        a_nodes, log_post, weights, mean, spread = posterior._marginal()
+        posterior._results_valid = False
+        results = posterior._marginal()
         with np.errstate(under="ignore"):
-            expected = _numpy_marginal(joint, a_nodes)
-        for got, want in zip((log_post, weights, mean, spread), expected):
+            expected = _numpy_marginal(joint, posterior._a_nodes)
+        for got, want in zip([results[name] for name in ("log_post", "weights", "mean", "spread")], expected):
             assert np.array_equal(_bits(got), _bits(want))
         assert np.array_equal(_bits(posterior.spread()), _bits(expected[3]))
         zero, positive = zero + (expected[1] == 0.0).sum(), positive + (expected[1] > 0.0).sum()
@@ -113,7 +113,12 @@ def test_restart_puts_the_node_plants_where_a_simulator_reset_puts_them(task, k_
     _drive(posterior, 30, np.random.default_rng(2))
     per = posterior.nodes * posterior.k_nodes
     before = {name: getattr(posterior.sim, name).copy() for name in NODE_ARRAYS}
+    posterior.estimate()  # the results are up to date: the restart gives its rows the start's
     posterior.restart(np.array([1, 3]))
+    kept = {name: values.copy() for name, values in posterior._marginal().items()}
+    posterior._results_valid = False
+    for name, values in posterior._marginal().items():  # computed afresh
+        assert np.array_equal(_bits(values), _bits(kept[name])), name
     slow = _slow_nodes(posterior)
     for name in NODE_ARRAYS:
         now = getattr(posterior.sim, name).reshape((5, per) + before[name].shape[1:])
@@ -181,3 +186,28 @@ def test_vector_env_with_threads_matches_the_single_envs():
         for action in actions[:, row]:
             single.append(env.step(action)[0])
         assert np.array_equal(np.array(single), np.array(vector)[:, row])
+
+
+def _step_in_child(queue):
+    posterior = GridPosterior(task_config_v2("hyst_gym/HotCalibrate-v0"), [0], 4)
+    posterior.restart(np.arange(4))
+    _drive(posterior, 3, np.random.default_rng(5))
+    queue.put(posterior.estimate().tolist())
+
+
+def test_a_forked_child_steps_in_threads_of_its_own(monkeypatch):
+    # the parent's worker thread is not in a forked child: the child makes its own pool (else it would wait forever)
+    import multiprocessing
+
+    monkeypatch.setattr(posterior_module, "SPLIT_MIN_NODES", 1)
+    monkeypatch.setattr(posterior_module, "step_threads", lambda: 2)
+    _step_in_child(parent := multiprocessing.get_context("fork").SimpleQueue())
+    expected = parent.get()
+    queue = multiprocessing.get_context("fork").SimpleQueue()
+    child = multiprocessing.get_context("fork").Process(target=_step_in_child, args=(queue,))
+    child.start()
+    child.join(timeout=60)
+    if child.is_alive():
+        child.kill()
+    assert child.exitcode == 0
+    assert queue.get() == expected
