@@ -18,6 +18,14 @@ With ``k_nodes`` = 1 on a task with a k prior the posterior *assumes the nominal
 weaker estimator). The estimate after :meth:`GridPosterior.step` with the field of step t predicts a at
 the end of step t from the outputs up to step t - 1. Its spread is the posterior standard deviation of
 a over the T0 nodes (A/m).
+
+Speed (issue 32; same numbers bit for bit, ``tests/envs/test_posterior_speed.py``). Nearly all of a calibration
+env's step is model (6) in the node plants: n*nodes*k_nodes of them (65,536 at n = 1024 with 64 nodes, 221,184
+with the k task's 24 x 9). A restart copies a start state stored once (a node's start draws nothing); from
+:data:`SPLIT_MIN_NODES` node plants the step runs in two blocks of sub-envs in two threads (its kernels release
+the GIL; a row's numbers depend on its row alone); the marginal, weights, mean, spread and estimate are compiled
+kernels around numpy's exp and log (numpy's order of summation kept, and exp left out where it underflows to 0,
+numpy's slow path).
 """
 
 from __future__ import annotations
