@@ -146,3 +146,20 @@ def test_the_report_plots_k_and_c_over_the_record():
     (label, k_curve), = [(label, y) for label, _, y in curves if label.startswith("k(t)")]
     assert "limit" in label and k_curve.min() == pytest.approx(1e-3, rel=1e-12)
     np.testing.assert_allclose(k_curve, np.maximum(1.0 - steep["beta_k"] * rise, 1e-3), rtol=1e-12)
+
+
+def test_the_ms_drift_range_admits_the_measured_gadolinium_near_its_curie_point():
+    """beta_Ms's physical range holds the relative fall of the largest M of the measured gadolinium major loops
+    from +5 to +15 C (Tc 18.3 C), computed here from the shipped data; the old range (0.01/K) did not."""
+    import pathlib
+
+    loops = np.load(pathlib.Path(__file__).resolve().parents[2] / "data" / "real" / "gd-temperature" / "gd_loops.npz")
+    mu0 = 4e-7 * np.pi
+    peak = {tag: float(np.max(loops[f"{tag}_major_B"] / mu0 - loops[f"{tag}_major_H"])) for tag in ("p05C", "p15C")}
+    slope = (peak["p05C"] - peak["p15C"]) / peak["p05C"] / 10.0  # 1/K
+    assert 0.01 < slope
+    recording = make_recording_with_truth("thermal_drift", 1, output="magnetization", n_samples=600)[0]
+    structure = Structure("none", "ising", "thermal_drift")
+    values = {n: p.value for n, p in base_parameters(recording, structure).items()}
+    beta = extension_parameters(recording, structure, values)["beta_Ms"]
+    assert beta.lower <= -slope and slope <= beta.upper
