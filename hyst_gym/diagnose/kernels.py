@@ -29,6 +29,7 @@ forcing that is linear between samples (first-order hold), see :func:`lti_respon
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -98,6 +99,27 @@ def heating_reference(field):
     return math.sqrt(np.mean(field * field)) + 1e-300
 
 
+class LanePlan(NamedTuple):
+    """Per lane of :func:`simulate_lanes`, the advance under way: its start field (A/m), substep (A/m),
+    direction (+1 or -1), number of substeps, and the lane's constants (``(8, lanes)``, :func:`lane_constants`)."""
+
+    start: np.ndarray
+    step: np.ndarray
+    delta: np.ndarray
+    count: np.ndarray
+    constants: np.ndarray
+
+
+class LaneMaterial(NamedTuple):
+    """Per lane of :func:`simulate_lanes`, the material's present a (A/m), k (A/m), Ms (A/m) and c (1), which
+    heating moves."""
+
+    a: np.ndarray
+    k: np.ndarray
+    Ms: np.ndarray
+    c: np.ndarray
+
+
 def lane_passes(count: int) -> int:
     """Compiled passes over the record of :func:`simulate_lanes` for ``count`` lanes: one per
     :data:`BANK_LANES` of them (a pass costs about the same for one lane as for a full bank)."""
@@ -135,6 +157,8 @@ def simulate_lanes(time, fields, field_index, params, h_ref, kind, max_field_ste
     delta = np.zeros(width)
     count = np.zeros(width, dtype=np.int64)
     constants = np.zeros((8, width))
+    plan = LanePlan(start, step, delta, count, constants)
+    material = LaneMaterial(a, k, Ms, c)
     gap = np.zeros(width)
     d_he = np.zeros(width)
     m_old = np.zeros(width)
@@ -150,7 +174,7 @@ def simulate_lanes(time, fields, field_index, params, h_ref, kind, max_field_ste
         a[i], k[i], Ms[i], c[i] = row[0], row[1], row[3], row[4]
         start[i] = 0.0
         target = fields[field_index[row_of[i]], 0] + row[5]
-        _plan(i, 0.0, target, a[i], k[i], row[2], Ms[i], c[i], max_field_step, start, step, delta, count, constants)
+        _plan(i, 0.0, target, material, row[2], max_field_step, plan)
         he[i] = target
     _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind)
     for i in range(n_members):
@@ -173,12 +197,10 @@ def simulate_lanes(time, fields, field_index, params, h_ref, kind, max_field_ste
                 chi = magnetization_slope(he[i], m[i], direction, a[i], k[i], row[2], Ms[i], c[i], kind)
                 d_he[i] = gap[i] / (1.0 + k_e * chi / dt)
                 target = he[i] + d_he[i]
-            _plan(i, he[i], target, a[i], k[i], row[2], Ms[i], c[i], max_field_step, start, step, delta, count,
-                  constants)
+            _plan(i, he[i], target, material, row[2], max_field_step, plan)
         _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind)
         if eddy:
-            _correct(m, m_old, he, gap, d_he, dt, a, k, Ms, c, params, row_of, max_field_step, start, step, delta,
-                     count, constants)
+            _correct(m, m_old, he, gap, d_he, dt, material, params, row_of, max_field_step, plan)
             _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind)
         for i in range(width):
             row = params[row_of[i]]
@@ -192,32 +214,31 @@ def simulate_lanes(time, fields, field_index, params, h_ref, kind, max_field_ste
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _correct(m, m_old, he, gap, d_he, dt, a, k, Ms, c, params, row_of, max_field_step, start, step, delta, count,
-             constants):
+def _correct(m, m_old, he, gap, d_he, dt, material, params, row_of, max_field_step, plan):
     """The eddy-current lanes' corrector (_simulate_one's): the secant susceptibility of the predictor's step,
     and that lane's step planned again from its start (the other lanes take no substep)."""
     for i in range(m.shape[0]):
         row = params[row_of[i]]
-        count[i] = 0
+        plan.count[i] = 0
         if row[6] > 0.0 and d_he[i] != 0.0:
             chi = (m[i] - m_old[i]) / d_he[i]
             if chi < 0.0:
                 chi = 0.0
             d_he[i] = gap[i] / (1.0 + row[6] * chi / dt)
             m[i] = m_old[i]
-            _plan(i, he[i], he[i] + d_he[i], a[i], k[i], row[2], Ms[i], c[i], max_field_step, start, step, delta,
-                  count, constants)
+            _plan(i, he[i], he[i] + d_he[i], material, row[2], max_field_step, plan)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _plan(i, field_from, field_to, a, k, alpha, Ms, c, max_field_step, start, step, delta, count, constants):
+def _plan(i, field_from, field_to, material, alpha, max_field_step, plan):
     """Lane ``i``'s advance from ``field_from`` to ``field_to``: its substeps (advance_one's) and constants."""
     n, length, direction = monotone_substeps(field_to - field_from, max_field_step)
-    start[i] = field_from
-    step[i] = length
-    delta[i] = direction
-    count[i] = n
-    lane = lane_constants(a, k, alpha, Ms, c, direction)
+    plan.start[i] = field_from
+    plan.step[i] = length
+    plan.delta[i] = direction
+    plan.count[i] = n
+    constants = plan.constants
+    lane = lane_constants(material.a[i], material.k[i], alpha, material.Ms[i], material.c[i], direction)
     constants[0, i] = lane.alpha
     constants[1, i] = lane.inv_a
     constants[2, i] = lane.Ms
