@@ -19,7 +19,7 @@ weaker estimator). The estimate after :meth:`GridPosterior.step` with the field 
 the end of step t from the outputs up to step t - 1. Its spread is the posterior standard deviation of
 a over the T0 nodes (A/m).
 
-Speed (issue 32; same numbers bit for bit, ``tests/envs/test_posterior_speed.py``). Nearly all of a calibration
+Speed (same numbers bit for bit, ``tests/envs/test_posterior_speed.py``). Nearly all of a calibration
 env's step is model (6) in the node plants: n*nodes*k_nodes of them (65,536 at n = 1024 with 64 nodes, 221,184
 with the k task's 24 x 9). A restart copies a start state stored once (a node's start draws nothing); from
 :data:`SPLIT_MIN_NODES` node plants the step runs in two blocks of sub-envs in two threads (its kernels release
@@ -68,23 +68,6 @@ def step_threads() -> int:
     except AttributeError:  # no sched_getaffinity (macOS, Windows)
         cpus = os.cpu_count() or 1
     return max(1, min(MAX_STEP_THREADS, cpus))
-
-
-_pool = None
-_pool_pid = None
-_pool_lock = threading.Lock()
-
-
-def step_pool() -> ThreadPoolExecutor:
-    """The worker threads of the grid posteriors' steps (one process-wide pool of ``step_threads() - 1``, made again
-    in a forked child, whose copy has no threads)."""
-    global _pool, _pool_pid
-    with _pool_lock:
-        if _pool is None or _pool_pid != os.getpid():
-            _pool = ThreadPoolExecutor(max_workers=max(1, step_threads() - 1),
-                                       thread_name_prefix="hyst-gym-posterior")
-            _pool_pid = os.getpid()
-        return _pool
 
 
 def grid_sizes(k_prior, nodes: int | None = None, k_nodes: int | None = None) -> tuple[int, int]:
@@ -147,6 +130,7 @@ class GridPosterior:
         self._kernel_args = (self._node_command, np.ones(self.n * per, dtype=bool),
                              *as_kernel_tuples(self.sim._plant, self.sim._plant_params, self._likelihood))
         self._blocks = self._split(per)
+        self._pool, self._pool_pid, self._pool_lock = None, None, threading.Lock()
         self._no_rows = np.zeros(0, dtype=np.int64)
         self._updating = np.zeros(self.n, dtype=bool)
         self._no_field = np.zeros(self.n)
@@ -258,11 +242,21 @@ class GridPosterior:
             return
         calls = [(updating[rows], measured[rows], field[rows], stepping, rows, arguments, scratch)
                  for rows, arguments, scratch in self._blocks]
-        others = [step_pool().submit(self._advance_block, *call) for call in calls[1:]]
+        others = [self._step_pool().submit(self._advance_block, *call) for call in calls[1:]]
         self._advance_block(*calls[0])
         for other in others:
             other.result()
         self._results_valid = True
+
+    def _step_pool(self) -> ThreadPoolExecutor:
+        """This posterior's worker threads (``step_threads() - 1``), made on the first threaded step and made again
+        in a forked child, whose copy of the pool has no threads."""
+        with self._pool_lock:
+            if self._pool is None or self._pool_pid != os.getpid():
+                self._pool = ThreadPoolExecutor(max_workers=max(1, step_threads() - 1),
+                                                thread_name_prefix="hyst-gym-posterior")
+                self._pool_pid = os.getpid()
+            return self._pool
 
     def _advance_block(self, updating, measured, field, stepping, rows, arguments, scratch) -> None:
         """:func:`~.kernels.posterior_step` and then :meth:`_marginal_rows` of one block of sub-envs (in a thread)."""
