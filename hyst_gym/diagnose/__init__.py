@@ -1,4 +1,4 @@
-"""The mismatch tool: locate, name and model physics a simulation leaves out (issue 6).
+"""The mismatch tool: locate, name and model physics a simulation leaves out.
 
 Python API::
 

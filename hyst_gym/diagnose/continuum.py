@@ -37,8 +37,8 @@ def resonance_power_share(base: FitResult, noise) -> float:
 
 
 def try_continuum(split: Split, base, released, decision, base_heldout, share, workers: int = 1):
-    """Issue 22, point 4: the base model leaves a residual that lives near or above its first
-    resonance and no extension explains it. Try continuum mechanics two ways and say which explains it:
+    """Continuum mechanics, for a base model that leaves a residual near or above its first resonance
+    that no extension explains. Tried two ways, and the tool says which explains it:
 
     * the finite-element rod base (``--model fem``: Young's modulus, tip mass, distributed and tip damping
       fitted, all its modes), calibrated from scratch;

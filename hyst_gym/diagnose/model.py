@@ -79,7 +79,7 @@ anhysteretic curve, the time variation of the material, the rate dependence, the
 magnetostriction law, the stiffness, the mechanical modes, the sensor's dynamics or the sensor's
 static map, the sensor's offset and pickup. The flexible families (``delta_e``, the heating law of
 ``thermal_drift``, ``input_map``, ``sensor_map``, ``sensor_drift``, ``sensor_gain_drift``) hold the textbook
-law as a special case and other laws of the same slot besides (issue 22).
+law as a special case and other laws of the same slot besides.
 
 The fitted coordinates are ``ln(value)`` for the positive scale parameters and
 ``value/scale`` for the others; the feedback is fitted as ``rho = alpha*Man'(0)`` (the
@@ -117,7 +117,7 @@ PAPER_KHAT = PAPER_STIFFNESS   # 1/s^2
 #: Default tolerance on the lumped mechanics (khat, chat): the fit keeps each within a factor
 #: of this of its nominal value (the paper's (13), or ``khat``/``chat`` in the recording's
 #: sidecar). A rod's data sheet pins its resonance far better than 1.5x; a looser prior lets
-#: the base model absorb a sensor lag or a rod mode by moving its resonance (issue 12).
+#: the base model absorb a sensor lag or a rod mode by moving its resonance.
 MECHANICS_TOLERANCE = 1.5
 #: Elements of the ``fem`` base model's rod: its first two modes within ~1 % of a fine mesh.
 FEM_ELEMENTS = 8

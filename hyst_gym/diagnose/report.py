@@ -45,7 +45,7 @@ def _fmt(name, values, sigmas):
 
 
 def slot_shapes(fit) -> list:
-    """The fitted shape of the slot an extension fills, as curves to plot (issue 22: "model it"):
+    """The fitted shape of the slot an extension fills, as curves to plot:
     ``(file stem, title, x label, y label, [(label, x, y), ...])`` per plot
     empty for extensions
     whose shape is a number (a lag, a bias)."""

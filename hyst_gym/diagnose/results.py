@@ -68,7 +68,7 @@ def heldout_or_failure(split: Split, fit: FitResult) -> tuple[float, np.ndarray,
 
 @dataclass
 class Report:
-    """What the tool found. ``to_json()`` gives the machine-readable report (issue 6)."""
+    """What the tool found. ``to_json()`` gives the machine-readable report."""
 
     source: str
     verdict: str

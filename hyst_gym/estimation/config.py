@@ -35,7 +35,7 @@ PAPER_ZETAHAT = PAPER_COUPLING  # m s^-2 per A/m
 #: The paper's Lyapunov weight for the vector estimator, §4.2.
 PAPER_Q = ((1.0e10, 0.0), (0.0, 1.0e-8))
 
-#: Grid sizes the bank accepts (issue 3).
+#: Grid sizes the bank accepts.
 MIN_GRID_SIZE = 16
 MAX_GRID_SIZE = 128
 

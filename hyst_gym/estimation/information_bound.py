@@ -1,4 +1,4 @@
-"""A Van Trees (Bayesian Cramér–Rao) floor on the error of *any* identification of a (issue 23).
+"""A Van Trees (Bayesian Cramér–Rao) floor on the error of *any* identification of a.
 
 Setting (suite v2's calibration tasks): the coil starts at an unknown temperature T0 drawn from a
 raised-cosine prior over ``[T_lo, T_hi]`` (K), so ``a0 = a(T0)`` (A/m, eq. (4)) has the raised-cosine

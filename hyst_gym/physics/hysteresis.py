@@ -252,7 +252,7 @@ class HysteresisBatch:
 # inliner. Both give the same SIMD bank loop (same machine code, same numbers), but the IR
 # inliner translates the callee's whole tree again at every call site -- with both curves
 # in every copy of anhysteretic_unit -- and cost about half of an environment's first-step
-# compilation (issue 24; docs/speed.md). With LLVM inlining each function is compiled once,
+# compilation (docs/speed.md). With LLVM inlining each function is compiled once,
 # and where the call site knows the curve LLVM drops the other one. inline="always" is kept
 # where it is cheap: on the layers (_advance_bank, advance_shared, advance_each) whose
 # callees are all ordinary calls, so that a caller does not build, optimize and emit them as
