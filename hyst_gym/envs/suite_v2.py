@@ -169,12 +169,28 @@ class _Scored:
         return reward / (total - first)
 
 
+def heat_scale(config) -> tuple[float, float]:
+    """The ``heat_used`` observation of the calibration envs: (1/margin, bound). ``heat_used = (T - T0)/margin``,
+    the coil's temperature rise above its start T0 over ``margin = temperature_limit - (hottest start of the
+    prior)``: 1 when the hottest start would reach the limit, ``bound = (temperature_limit - coldest start)/margin``
+    when the coldest would (clipped to [0, bound]). With the calibration presets' ambient equal to T0 and no
+    drift, the rise obeys ``tau*r' = -r + R_th*P(H)`` from r = 0, with a constant coil resistance: a function of
+    the applied field's history alone, the same for every T0, so it tells the agent nothing about a that the
+    field it applied does not."""
+    t_lo, t_hi = config.initial_temperature_range
+    margin = config.temperature_limit - t_hi
+    if margin <= 0.0:
+        raise ValueError(f"heat_used needs temperature_limit above the hottest start; got {config.temperature_limit:g} "
+                         f"<= {t_hi:g} K")
+    return 1.0 / margin, (config.temperature_limit - t_lo) / margin
+
+
 class _Calibrate(_Scored):
     """Shared by the single and the vector calibration env: the sensor selection (observation columns
     kept), the reporter (the grid posterior in the loop, or the agent) and the scored reward. The simulator
     draws the start temperature and, where the task has one, k from the task's priors."""
 
-    def _setup_calibrate(self, spec, reporter: str, n: int, posterior_nodes):
+    def _setup_calibrate(self, spec, reporter: str, n: int, posterior_nodes, heat_state: bool = True):
         if reporter not in REPORTERS:
             raise ValueError(f"reporter must be one of {REPORTERS}, got {reporter!r}")
         self.reporter = reporter
@@ -194,6 +210,13 @@ class _Calibrate(_Scored):
             low, high = np.append(low, np.float32(0.0)), np.append(high, np.float32(1.0))
             self._measured = np.zeros((n, len(self._channels)))
             self._fresh = np.ones(n, dtype=bool)
+        self._heat_scale, heat_high = heat_scale(self.config)
+        self._heat_high = heat_high
+        self._start_temperature = np.zeros(n)
+        self.heat_state = bool(heat_state)
+        if self.heat_state:
+            kept = kept + ["heat_used"]
+            low, high = np.append(low, np.float32(0.0)), np.append(high, np.float32(heat_high))
         self.kept_names = kept
         return low, high
 
@@ -205,6 +228,7 @@ class _Calibrate(_Scored):
     def _restart(self, rows) -> None:
         """Sub-envs ``rows`` start new episodes: their step count and (in the loop) their posterior."""
         self._elapsed[rows] = 0
+        self._start_temperature[rows] = self.sim.ambient0[rows]  # = the start temperature (reset sets both)
         if self.posterior is not None:
             self.posterior.restart(rows)
             self._fresh[rows] = True
@@ -231,14 +255,28 @@ class _Calibrate(_Scored):
         """The estimator's spread per sub-env: posterior standard deviation of a / width(Theta), in [0, 1]."""
         return np.minimum(np.maximum(self.posterior.spread() / self.config.theta_width, 0.0), 1.0)
 
+    def _heat(self, temperature, start) -> np.ndarray:
+        """The ``heat_used`` column: the coil's temperature rise above its start / the hottest start's overheat
+        margin, clipped to [0, its bound]."""
+        return np.minimum(np.maximum((temperature - start) * self._heat_scale, 0.0), self._heat_high)
+
     def _observation(self, full: np.ndarray) -> np.ndarray:
-        """The agent's observation rows from the simulator's: the task's sensors, and (in the loop) the
-        estimator's estimate (in place of the reported one) and its spread (std of a / width(Theta))."""
-        observation = full[:, self._keep]
-        if self.posterior is None:
-            return observation
-        self._measured = observation[:, :len(self._channels)].astype(np.float64)
-        return np.concatenate([observation, self._spread()[:, None].astype(np.float32)], axis=1)
+        """The agent's observation rows from the simulator's: the task's sensors, (in the loop) the estimator's
+        estimate (in place of the reported one) and its spread (std of a / width(Theta)), and the heat used."""
+        kept = self._keep.size
+        out = np.empty((full.shape[0], len(self.kept_names)), dtype=np.float32)
+        out[:, :kept] = full[:, self._keep]
+        if self.posterior is not None:
+            self._measured = out[:, :len(self._channels)].astype(np.float64)
+            out[:, kept] = self._spread()
+        if not self.heat_state:
+            return out
+        if full.shape[0] == 1:  # a single env: the same arithmetic in Python floats (numpy on one element is slower)
+            rise = (float(self.sim.temperature[0]) - float(self._start_temperature[0])) * self._heat_scale
+            out[0, -1] = min(max(rise, 0.0), self._heat_high)
+        else:
+            out[:, -1] = self._heat(self.sim.temperature, self._start_temperature)
+        return out
 
 
 class HotCalibrateEnv(_Calibrate, IdentificationEnv):
@@ -272,10 +310,19 @@ class HotCalibrateEnv(_Calibrate, IdentificationEnv):
     | next | elapsed | 0 | 1 | step / 200 |
     | next | a_estimate | -1 | 1 | the estimator's estimate of a (the one scored), mapped from Theta |
     | next | estimate_spread | 0 | 1 | its posterior standard deviation / width(Theta) |
+    | last | heat_used | 0 | 11/3 | the coil's temperature rise above its start / 15 K (see below) |
 
     With ``reporter="agent"``: ``previous_estimate`` (the agent's last reported estimate) in place of
     ``a_estimate``, and no ``estimate_spread``. Measurement noise: ``output_noise`` (1e-4; 1e-3 in the noisy
     and displacement-only tasks) times each output's scale, Gaussian, per step.
+
+    ``heat_used`` is the coil's heat state, on both tracks: the rise ``T - T0`` over the margin
+    ``60 C - 45 C = 15 K`` of the prior's hottest start (:func:`heat_scale`), so 1 is where the hottest start
+    overheats and 11/3 (55 K) where the coldest does. The ambient equals T0 and does not drift, and the coil's
+    resistance does not depend on its temperature, so the rise obeys ``tau*r' = -r + R_th*R*(H/n)**2`` from 0:
+    a function of the applied field's history alone, equal for every T0 (to rounding). It tells the agent how
+    much of the heat budget its input has spent and nothing about a; how much is left still depends on the
+    unknown T0, which the estimate (a is proportional to the temperature) narrows.
 
     ## Rewards
     The reward sums to minus the task's score: per step of the scored window (steps 101..200: a 5 s
@@ -293,24 +340,26 @@ class HotCalibrateEnv(_Calibrate, IdentificationEnv):
     ``terminated``: the coil passes 333.15 K (60 C). ``truncated``: 200 steps (10 s at dt = 0.05 s).
 
     ## Arguments
-    ``gymnasium.make(id, reporter="estimator", posterior_nodes=None, **overrides)``: ``reporter``: ``"estimator"``
-    (default) or ``"agent"`` (the agent-reports track); ``posterior_nodes``: T0 grid nodes of the estimator
-    (default 64, 24 with a k grid of 9 on the k task); any :class:`~hyst_gym.envs.config.EnvConfig` field on
-    top of the preset. Reset options as :class:`~hyst_gym.envs.single.HystEnv` (``initial_temperature``
-    bypasses the prior).
+    ``gymnasium.make(id, reporter="estimator", posterior_nodes=None, heat_state=True, **overrides)``:
+    ``reporter``: ``"estimator"`` (default) or ``"agent"`` (the agent-reports track); ``posterior_nodes``: T0
+    grid nodes of the estimator (default 64, 24 with a k grid of 9 on the k task); ``heat_state=False`` drops
+    ``heat_used`` from the observation (an ablation; the suite plays the default); any
+    :class:`~hyst_gym.envs.config.EnvConfig` field on top of the preset. Reset options as
+    :class:`~hyst_gym.envs.single.HystEnv` (``initial_temperature`` bypasses the prior).
 
     ## Version History
     * v0: first version (suite v2): the agent reported a; then the estimator in the loop (the action is the
       field only, the observation holds the estimator's estimate and spread) and the reward that sums to the
-      score, with the agent-reports track kept as ``reporter="agent"``.
+      score, with the agent-reports track kept as ``reporter="agent"``; then the coil's heat state
+      (``heat_used``) as the observation's last entry on both tracks.
     """
 
     def __init__(self, task: str = "hyst_gym/HotCalibrate-v0", render_mode=None, reporter: str = "estimator",
-                 posterior_nodes: int | None = None, **overrides):
+                 posterior_nodes: int | None = None, heat_state: bool = True, **overrides):
         spec = _spec(task, "calibrate")
         super().__init__(spec.env_config(**overrides), render_mode=render_mode, **spec.simulator_priors())
         self.task = task
-        low, high = self._setup_calibrate(spec, reporter, 1, posterior_nodes)
+        low, high = self._setup_calibrate(spec, reporter, 1, posterior_nodes, heat_state)
         from gymnasium import spaces
 
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
@@ -344,15 +393,15 @@ class HotCalibrateEnv(_Calibrate, IdentificationEnv):
 
 class HotCalibrateVectorEnv(_Calibrate, IdentificationVectorEnv):
     """Native vector env of the calibration tasks (see :class:`HotCalibrateEnv`; ``reporter``,
-    ``posterior_nodes`` as there); sub-envs reset automatically restart their estimator."""
+    ``posterior_nodes``, ``heat_state`` as there); sub-envs reset automatically restart their estimator."""
 
     def __init__(self, num_envs: int = 1, task: str = "hyst_gym/HotCalibrate-v0", reporter: str = "estimator",
-                 posterior_nodes: int | None = None, **overrides):
+                 posterior_nodes: int | None = None, heat_state: bool = True, **overrides):
         spec = _spec(task, "calibrate")
         env_args = {key: overrides.pop(key) for key in ENV_KEYWORDS if key in overrides}
         super().__init__(num_envs, spec.env_config(**overrides), **env_args, **spec.simulator_priors())
         self.task = task
-        low, high = self._setup_calibrate(spec, reporter, self.num_envs, posterior_nodes)
+        low, high = self._setup_calibrate(spec, reporter, self.num_envs, posterior_nodes, heat_state)
         from gymnasium import spaces
         from gymnasium.vector.utils import batch_space
 
@@ -392,18 +441,20 @@ class HotCalibrateVectorEnv(_Calibrate, IdentificationVectorEnv):
         if final is not None:  # SAME_STEP: the finished sub-envs' last observations, then their restart
             last = info["final_obs"]
             spread = None if self.posterior is None else self._spread()
+            heat = self._heat(final["temperature"], self._start_temperature) if self.heat_state else None
             final_obs = np.full(self.num_envs, None, dtype=object)  # one array (or None) per sub-env
             for row, obs in enumerate(last):
-                final_obs[row] = None if obs is None else self._row_observation(obs, spread, row)
+                final_obs[row] = None if obs is None else self._row_observation(obs, spread, heat, row)
             info["final_obs"] = final_obs
         restarted = resetting if final is None else done
         if restarted.any():
             self._restart(np.flatnonzero(restarted))
         return self._observation(observation), reward, terminated, truncated, info
 
-    def _row_observation(self, full_row, spread, row):
-        observation = full_row[self._keep]
-        return observation if spread is None else np.append(observation, np.float32(spread[row]))
+    def _row_observation(self, full_row, spread, heat, row):
+        observation = full_row[self._keep]  # then the spread (in the loop) and the heat used of the finished episode
+        extra = ([] if spread is None else [spread[row]]) + ([] if heat is None else [heat[row]])
+        return np.append(observation, np.array(extra, dtype=np.float32))
 
 
 class HotCalibrateUnknownKEnv(HotCalibrateEnv):
@@ -440,10 +491,12 @@ class HotCalibrateUnknownKEnv(HotCalibrateEnv):
     | 2 | elapsed | 0 | 1 | step / 200 |
     | 3 | a_estimate | -1 | 1 | the estimator's estimate of a (the one scored), mapped from Theta |
     | 4 | estimate_spread | 0 | 1 | its posterior standard deviation (k marginalized) / width(Theta) |
+    | 5 | heat_used | 0 | 11/3 | the coil's temperature rise above its start / 15 K, as ``hyst_gym/HotCalibrate-v0`` |
 
     With ``reporter="agent"``: ``previous_estimate`` (the agent's last reported estimate) in place of
-    ``a_estimate``, and no ``estimate_spread``. Measurement noise: 1e-4 of the output's scale, Gaussian, per
-    step.
+    ``a_estimate``, no ``estimate_spread``, and ``heat_used`` at index 4. Measurement noise: 1e-4 of the
+    output's scale, Gaussian, per step. k does not enter the coil's heating, so ``heat_used`` is the same
+    function of the field's history as in ``hyst_gym/HotCalibrate-v0``.
 
     ## Rewards
     As ``hyst_gym/HotCalibrate-v0``: the reward sums to minus the score,
@@ -461,14 +514,15 @@ class HotCalibrateUnknownKEnv(HotCalibrateEnv):
     ``terminated``: the coil passes 333.15 K (60 C). ``truncated``: 200 steps (10 s at dt = 0.05 s).
 
     ## Arguments
-    ``gymnasium.make(id, reporter="estimator", posterior_nodes=None, **overrides)`` as
+    ``gymnasium.make(id, reporter="estimator", posterior_nodes=None, heat_state=True, **overrides)`` as
     ``hyst_gym/HotCalibrate-v0``. Reset options as :class:`~hyst_gym.envs.single.HystEnv`
     (``initial_temperature`` bypasses the temperature prior) and ``pinning_k`` (A/m, > 0), which bypasses the
     k prior.
 
     ## Version History
     * v0: first version (suite v2): the agent reported a; then the estimator in the loop and the reward that
-      sums to the score, with the agent-reports track kept as ``reporter="agent"``.
+      sums to the score, with the agent-reports track kept as ``reporter="agent"``; then the coil's heat state
+      (``heat_used``) as the observation's last entry on both tracks.
     """
 
     def __init__(self, task: str = "hyst_gym/HotCalibrateUnknownK-v0", render_mode=None, **overrides):

@@ -71,13 +71,13 @@ def test_calibration_prior_is_the_raised_cosine():
 
 def test_displacement_only_hides_the_velocity():
     env = gymnasium.make("hyst_gym/DisplacementOnly-v0", reporter="agent")
-    assert env.unwrapped.observation_names == ["displacement", "field", "elapsed", "previous_estimate"]
+    assert env.unwrapped.observation_names == ["displacement", "field", "elapsed", "previous_estimate", "heat_used"]
     obs, _ = env.reset(seed=3)
-    assert obs.shape == env.observation_space.shape == (4,)
+    assert obs.shape == env.observation_space.shape == (5,)
     full = env.unwrapped.sim.observation()[0]
-    assert full.shape == (5,) and np.array_equal(obs, full[[0, 2, 3, 4]])
+    assert full.shape == (5,) and np.array_equal(obs[:4], full[[0, 2, 3, 4]]) and obs[4] == 0.0
     in_loop = gymnasium.make("hyst_gym/DisplacementOnly-v0")
-    names = ["displacement", "field", "elapsed", "a_estimate", "estimate_spread"]
+    names = ["displacement", "field", "elapsed", "a_estimate", "estimate_spread", "heat_used"]
     assert in_loop.unwrapped.observation_names == names and in_loop.unwrapped.posterior.channels == [0]
 
 
@@ -305,3 +305,100 @@ def test_the_in_loop_vector_env_restarts_its_estimator_on_autoreset():
                 obs, reward, _, _, _ = env.step(actions[t, i])
                 assert vrew[i] == pytest.approx(reward, rel=1e-12, abs=1e-15)
             assert np.array_equal(vobs[i], obs)
+
+
+def _heat_trace(task_id, reporter, start, field):
+    env = gymnasium.make(task_id, reporter=reporter)
+    column = env.unwrapped.observation_names.index("heat_used")
+    obs, _ = env.reset(seed=0, options={"initial_temperature": start})
+    heat, temperature = [obs[column]], [env.unwrapped.sim.temperature[0]]
+    for u in field:
+        action = np.array([u] if reporter == "estimator" else [u, 0.0], dtype=np.float32)
+        obs, _, terminated, _, info = env.step(action)
+        heat.append(obs[column])
+        temperature.append(info["temperature"])
+        if terminated:
+            break
+    return np.array(heat), np.array(temperature), terminated
+
+
+@pytest.mark.parametrize("task_id, reporter", [("hyst_gym/HotCalibrate-v0", "estimator"),
+                                               ("hyst_gym/HotCalibrate-v0", "agent"),
+                                               ("hyst_gym/DisplacementOnly-v0", "estimator"),
+                                               (UNKNOWN_K, "estimator")])
+def test_heat_used_is_the_rise_the_field_history_makes(task_id, reporter):
+    """``heat_used`` is the coil's rise above its start over the hottest start's margin (15 K): the thermal model
+    stepped from the applied field alone gives it, it is the same for every start temperature (so it says nothing
+    about a), and it reaches 1 where the hottest start of the prior overheats."""
+    from hyst_gym.envs.suite_v2 import heat_scale
+    from hyst_gym.physics.thermal import mean_square_linear, temperature_step
+
+    config = gymnasium.make(task_id).unwrapped.config
+    scale, bound = heat_scale(config)
+    assert scale == pytest.approx(1 / 15.0) and bound == pytest.approx(55.0 / 15.0)
+    field = np.random.default_rng(5).uniform(-1, 1, 120)
+    cold, _, _ = _heat_trace(task_id, reporter, 280.0, field)
+    warm, temperature, _ = _heat_trace(task_id, reporter, 310.0, field)
+    assert cold.size == warm.size == 121 and cold[0] == 0.0 and warm[-1] > 0.01
+    np.testing.assert_allclose(cold, warm, rtol=1e-6, atol=1e-7)
+    # the thermal model (tau*r' = -r + R_th*P, ambient = start) stepped over the applied field, independently
+    thermal = config.thermal
+    decay = np.exp(-config.dt / thermal.time_constant)
+    applied, rise, expected = 0.0, 0.0, [0.0]
+    for u in field:
+        command = u * config.field_limit
+        previous, applied = applied, min(max(command, applied - config.slew_rate_limit * config.dt),
+                                         applied + config.slew_rate_limit * config.dt)
+        offset = thermal.thermal_resistance * thermal.power_per_square_field * mean_square_linear(previous, applied)
+        rise = float(temperature_step(rise, 0.0, 0.0, offset, decay))
+        expected.append(rise * scale)
+    np.testing.assert_allclose(warm, expected, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(warm, (temperature - 310.0) * scale, rtol=1e-6, atol=1e-7)
+    hot, temperature, overheated = _heat_trace(task_id, reporter, 318.15, np.ones(200))
+    assert overheated and temperature[-1] > config.temperature_limit and 1.0 <= hot[-1] < 1.1
+    assert hot[-2] < 1.0  # the step before the overheat
+
+
+def test_same_step_autoreset_keeps_the_finished_episode_s_heat():
+    """SAME_STEP autoreset: the native calibration vector env equals a SyncVectorEnv of single envs step for
+    step, the final observations (their heat_used from the finished episode's start) included, over episodes
+    that end both by an overheat and by the time limit."""
+    from gymnasium.vector import AutoresetMode, SyncVectorEnv
+
+    task_id, n = "hyst_gym/HotCalibrate-v0", 4
+    native = _vec(task_id, n, autoreset_mode=AutoresetMode.SAME_STEP, episode_steps=60)
+    sync = SyncVectorEnv([lambda: gymnasium.make(task_id, episode_steps=60) for _ in range(n)],
+                         autoreset_mode=AutoresetMode.SAME_STEP)
+    np.testing.assert_array_equal(native.reset(seed=8)[0], sync.reset(seed=8)[0])
+    actions = np.clip(np.random.default_rng(2).normal(0.9, 0.3, (150, n, 1)), -1, 1).astype(np.float32)
+    ends = {"terminated": 0, "truncated": 0}
+    for action in actions:
+        out_n, out_s = native.step(action), sync.step(action)
+        for a, b in zip(out_n[:4], out_s[:4]):
+            np.testing.assert_array_equal(a, b)
+        if "final_obs" in out_s[4]:
+            for i in np.flatnonzero(out_s[4]["_final_obs"]):
+                np.testing.assert_array_equal(out_n[4]["final_obs"][i], out_s[4]["final_obs"][i])
+                assert out_n[4]["final_obs"][i][-1] > 0.0
+        ends["terminated"] += int(out_s[2].sum())
+        ends["truncated"] += int(out_s[3].sum())
+    assert ends["terminated"] > 0 and ends["truncated"] > 0
+
+
+@pytest.mark.parametrize("reporter", ["estimator", "agent"])
+def test_heat_state_false_drops_only_the_heat_column(reporter):
+    """The ablation ``heat_state=False``: the same episode, the observation without its last column, single and
+    vector alike."""
+    with_heat = gymnasium.make("hyst_gym/HotCalibrate-v0", reporter=reporter)
+    without = gymnasium.make("hyst_gym/HotCalibrate-v0", reporter=reporter, heat_state=False)
+    assert without.unwrapped.observation_names == with_heat.unwrapped.observation_names[:-1]
+    assert without.observation_space.shape[0] == with_heat.observation_space.shape[0] - 1
+    venv = _vec("hyst_gym/HotCalibrate-v0", 2, reporter=reporter, heat_state=False)
+    a, b, v = with_heat.reset(seed=6)[0], without.reset(seed=6)[0], venv.reset(seed=6)[0]
+    assert np.array_equal(a[:-1], b) and np.array_equal(v[0], b)
+    actions = np.random.default_rng(0).uniform(-1, 1, (30,) + with_heat.action_space.shape).astype(np.float32)
+    for action in actions:
+        a, ra = with_heat.step(action)[:2]
+        b, rb = without.step(action)[:2]
+        v = venv.step(np.stack([action, action]))[0]
+        assert np.array_equal(a[:-1], b) and ra == rb and np.array_equal(v[0], b)
