@@ -1,4 +1,4 @@
-"""Benchmark suite v2 (issue 23): tasks with their own stories, floors that are bounds where derivable.
+"""Benchmark suite v2: tasks with their own stories, floors that are bounds where derivable.
 
     hyst-gym benchmark --suite v2 [--quick | --reduced] [--tasks ID,ID] [--merge] [--out DIR] [--no-docs]
     python -m experiments.suite --suite v2 [same options]
@@ -36,11 +36,11 @@ agent-reports track (``reporter="agent"``) with a posterior that assumes the nom
 
 Headroom: ``(reference - floor)/floor`` (reference: the best ``open_loop`` agent), 95 % bootstrap CI over
 the draws; a task enters the suite when the CI lies above 25 %. Normalized score:
-``(reference - agent)/(reference - floor)``. RL gap: a task counts for issue 23 when the best RL
+``(reference - agent)/(reference - floor)``. RL gap: a task counts for the RL-gap target when the best RL
 agent's normalized score has its CI below 0.7 (it leaves at least 30 % of the gap).
 
 Profiles: ``quick`` (<= 10 min: 16 held-out draws, small searches, the committed RL models, no
-training), ``reduced`` (this session's measurement: 24 held-out draws, RL trained at small budgets,
+training), ``reduced`` (a reduced-budget measurement: 24 held-out draws, RL trained at small budgets,
 3 seeds), ``full`` (50 draws, 10 seeds; not run yet). Writes ``experiments/results/suite_v2[_PROFILE].json``
 and ``.md``, ``docs/figures/suite_v2[_PROFILE].png`` and (full and reduced profiles) the ``suite-v2``
 section of ``docs/results/suite.md``. ``--merge`` keeps the other tasks of the profile's stored JSON
@@ -86,7 +86,7 @@ class Profile:
     train: bool
 
 
-#: the budgets trained in this session (the quick profile evaluates the models they left)
+#: the reduced profile's RL budgets (the quick profile evaluates the models they left)
 SESSION_STEPS = {"ppo": 50_000, "sac": 5_000, "recurrent_ppo": 15_000}
 SESSION_FLAT = {"ppo": (3, 1, None), "sac": (3, 1, None),
                 # RecurrentPPO x3 took 500-960 s a run on the loaded 2-core machine: two tasks only
@@ -190,8 +190,10 @@ def model_dir(task_id: str, algo: str, seed: int, steps: int, raw: pathlib.Path 
     return raw / "train" / task_id.split("/")[-1] / algo / f"steps{steps}" / f"seed{seed}"
 
 
-def train_one(task_id: str, algo: str, seed: int, steps: int, raw: pathlib.Path = RAW, log=print):
-    """Train one seed (dense env reward, 8 envs, baselines.train defaults) unless it is there already."""
+def train_one(task_id: str, algo: str, seed: int, steps: int, raw: pathlib.Path = RAW, log=print,
+              env_kwargs: dict | None = None):
+    """Train one seed (dense env reward, 8 envs, baselines.train defaults) unless it is there already;
+    ``env_kwargs``: the env's keyword arguments (default none: the task as registered)."""
     from baselines.environment import EpisodeSpec
     from baselines.train import train
 
@@ -200,7 +202,7 @@ def train_one(task_id: str, algo: str, seed: int, steps: int, raw: pathlib.Path 
         return
     start = time.time()
     config = task_kind(task_id).config
-    train(algo, EpisodeSpec(task_id, {}, config.dt), int(steps), int(seed), out, n_envs=8,
+    train(algo, EpisodeSpec(task_id, dict(env_kwargs or {}), config.dt), int(steps), int(seed), out, n_envs=8,
           checkpoint_every=int(steps), progress=False, scenario=task_id.split("/")[-1])
     log(f"[suite v2] trained {task_id} {algo} seed {seed} x {steps:,} steps in {time.time() - start:.0f} s")
 
@@ -433,7 +435,7 @@ def markdown(data: dict) -> str:
     tasks = data["tasks"]
     lines = [f"Profile `{data['profile']}` ({data['profile_note']}): {data['heldout_draws']} held-out draws per agent; "
              f"RL {data['rl_budget']}; {_wall(data)}; hyst-gym {data['package_version']}.",
-             f"Calibration track: {data.get('track', OLD_TRACK)}.",
+             calibration_tracks(data),
              "Calibration tasks: RMS error over steps 101..200 and the draws (A/m), floor a Van Trees bound; jump "
              "task: IQM of the per-draw mean |error| (A/m), floor an oracle. [95 % bootstrap CI]; lower is better.",
              ""] + _task_rows(tasks)
@@ -502,7 +504,8 @@ def write_docs(data: dict, figure_path: pathlib.Path, docs: pathlib.Path = DOCS_
 
 
 #: the calibration tasks' track of this code, and of a stored JSON that does not say (measured before it)
-TRACK = "estimator in the loop (every agent designs the field; the env's grid posterior reports a)"
+TRACK = ("estimator in the loop (every agent designs the field; the env's grid posterior reports a; the observation "
+         "holds its estimate and spread and the coil's heat state, heat_used)")
 OLD_TRACK = ("the agent reports its own estimate (the agent-reports track, `reporter=\"agent\"`: measured before the "
              "calibration envs ran their estimator; the non-RL agents reported the same grid posterior)")
 
@@ -510,6 +513,25 @@ PROFILE_NOTES = {"full": "the suite's own decision",
                  "quick": "a smoke run on fewer draws with the committed RL models; not the suite's decision",
                  "reduced": "a reduced-budget measurement, NOT the full profile: fewer draws, 3 RL seeds at small "
                  "budgets"}
+
+
+def task_track(data: dict, task_id: str) -> str | None:
+    """The calibration track a task of a suite JSON was measured on (None for a task that is not a calibration
+    task): its own ``track``, else the JSON's, else the agent-reports track (a JSON that does not say)."""
+    task = data["tasks"][task_id]
+    if task.get("statistic") != "rms" and "track" not in task:  # the jump task: no reporter to choose
+        return None
+    return task.get("track") or data.get("track") or OLD_TRACK
+
+
+def calibration_tracks(data: dict) -> str:
+    """The results line that names the calibration track, per task where the tasks' tracks differ."""
+    tracks = {task_id: task_track(data, task_id) for task_id in data["tasks"]}
+    tracks = {task_id: track for task_id, track in tracks.items() if track is not None}
+    if len(set(tracks.values())) <= 1:
+        return f"Calibration track: {next(iter(tracks.values()), data.get('track', OLD_TRACK))}."
+    return "Calibration track, per task (the tasks were measured on different tracks): " + "; ".join(
+        f"`{task_id.split('/')[-1]}`: {track}" for task_id, track in tracks.items()) + "."
 
 
 def run_record(profile: Profile) -> dict:
@@ -545,6 +567,10 @@ def merge_stored(data: dict, path: pathlib.Path) -> dict:
         return {**data, "runs": [this_run]}
     stored = json.loads(path.read_text())
     check_mergeable(stored, data, path)
+    for task_id in stored["tasks"]:  # a kept task keeps the track it was measured on
+        track = task_track(stored, task_id)
+        if track is not None:
+            stored["tasks"][task_id]["track"] = track
     tasks = {**stored["tasks"], **data["tasks"]}
     for task_id, task in tasks.items():
         if task_id not in data["tasks"] and task_id in v2_ids:
@@ -558,6 +584,9 @@ def merge_stored(data: dict, path: pathlib.Path) -> dict:
     runs = [run for run in runs if run["tasks"]] + [this_run]  # an earlier run's wall time is its whole run's
     merged = {**data, "tasks": {t: tasks[t] for t in order}, "env_ids": order, "runs": runs,
               "wall_s": sum(run["wall_s"] for run in runs), "train_wall_s": sum(run["train_wall_s"] for run in runs)}
+    tracks = {task_track(merged, t) for t in order} - {None}
+    if len(tracks) > 1:
+        merged["track"] = "per task (each calibration task's track)"
     merged.pop("speed_remeasured", None)
     return merged
 
@@ -577,6 +606,8 @@ def run_suite(profile: Profile, task_ids, out: pathlib.Path, figure_path: pathli
     for task_id in task_ids:
         summary = summarize_task(task_id, evaluate_task(task_id, profile, raw, log), profile)
         summary["steps_per_s"] = env_speed(task_id)
+        if task_kind(task_id).spec.calibrates:
+            summary["track"] = TRACK
         tasks[task_id] = summary
     data = {"suite": "v2", "profile": profile.name, "profile_note": PROFILE_NOTES[profile.name],
             "package_version": hyst_gym.__version__, "env_ids": list(task_ids), "heldout_draws": profile.heldout,

@@ -182,6 +182,29 @@ def test_merge_keeps_the_other_tasks_and_replaces_the_run_s(tmp_path):
         suite_v2.check_mergeable(json.loads(path.read_text()), other, path)
 
 
+def test_a_merge_keeps_each_calibration_task_s_track(tmp_path):
+    """A task kept from a stored JSON of another calibration track keeps that track, the run's tasks carry this
+    code's, and the results line then names the track per task."""
+    import json
+
+    profile = suite_v2.PROFILES["reduced"]
+    path = tmp_path / "suite_v2_reduced.json"
+    kept = "hyst_gym/HotCalibrateNoisy-v0"
+    stored = _stored([kept, "hyst_gym/DriftJump-v0"], profile)  # a JSON that does not say: the agent-reports track
+    stored["tasks"][kept]["statistic"] = "rms"
+    stored["tasks"]["hyst_gym/DriftJump-v0"]["statistic"] = "iqm"
+    path.write_text(json.dumps(stored))
+    run = {**_stored([CALIBRATE], profile), "track": suite_v2.TRACK}
+    run["tasks"][CALIBRATE].update(statistic="rms", track=suite_v2.TRACK)
+    merged = suite_v2.merge_stored(run, path)
+    assert merged["tasks"][kept]["track"] == suite_v2.OLD_TRACK
+    assert merged["tasks"][CALIBRATE]["track"] == suite_v2.TRACK
+    assert "track" not in merged["tasks"]["hyst_gym/DriftJump-v0"] and merged["track"].startswith("per task")
+    line = suite_v2.calibration_tracks(merged)
+    assert line.startswith("Calibration track, per task") and "`HotCalibrateNoisy-v0`: the agent reports" in line
+    assert suite_v2.calibration_tracks(run) == f"Calibration track: {suite_v2.TRACK}."
+
+
 def test_k_task_reference_also_plays_the_design_searched_with_k_known():
     """On the k task the inputs without feedback include the direct design searched on its k-known
     sibling (same coil, limits and sensors; k does not enter the heating), played here as an open-loop
