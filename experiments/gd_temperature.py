@@ -51,7 +51,7 @@ Method
   its NRMSE. The Jacobian is a forward difference computed as one batched simulation
   (``simulate_batch``, ``simulate_hem_batch``) per record. The laws are evaluated once per parameter
   set for all temperatures, the HEM start states of all records are solved together
-  (``hem_start_states``, the physics layer's bisection bit for bit), and BLAS runs on one thread during
+  (``hem.states_with_magnetization``), and BLAS runs on one thread during
   the fit (the solver's SVD of the tall Jacobian is 20 times slower on two threads of a loaded 2-core machine).
 * Score: NRMSE of B = RMS(B_model - B_meas) / ptp(B_meas) over the LOOP PART of the
   record (from the first positive peak to the end; the initial curve is simulated but not
@@ -95,7 +95,7 @@ from scipy.optimize import least_squares
 from scipy.stats import theilslopes
 from threadpoolctl import threadpool_limits
 
-from hyst_gym.physics.hem import HEMBatch, HEMState, _share_numpy, reversible_magnetization, simulate_hem_batch
+from hyst_gym.physics.hem import HEMBatch, simulate_hem_batch, states_with_magnetization
 from hyst_gym.physics.hysteresis import HysteresisBatch, simulate_batch
 from hyst_gym.physics.temperature_laws import (
     GD_CURIE_K, HEM_PARAMETER_NAMES, PARAMETER_NAMES, Constant, CriticalPowerLaw, FollowsMs, HEMTemperatureLaws,
@@ -531,47 +531,11 @@ def _hem_values(family: LawFamily, zs: np.ndarray, temperatures_K: np.ndarray) -
     return out
 
 
-def hem_start_states(constants: Sequence, kind: int, fields: np.ndarray, magnetizations: np.ndarray,
-                     iterations: int = 60) -> List[HEMState]:
-    """:func:`hyst_gym.physics.hem.state_with_magnetization` for many banks at once, each at its own field:
-    ``constants[i]`` (a :class:`~hyst_gym.physics.hem.HEMConstants`) started at ``fields[i]`` (A/m) with M
-    ``magnetizations[i]`` (A/m, every model of the bank). The same bisection on the same numbers, the banks
-    side by side in one array, so each state equals the one ``state_with_magnetization`` gives bit for bit
-    (tests/experiments/test_gd_temperature.py) at one numpy pass per step for all records instead of one
-    per record."""
-    sizes = [c.coercive.shape[1] for c in constants]
-    field = np.repeat(np.asarray(fields, dtype=np.float64), sizes)
-    target = np.repeat(np.asarray(magnetizations, dtype=np.float64), sizes)
-    coercive = np.concatenate([c.coercive for c in constants], axis=1)
-    relay_weight = np.concatenate([c.relay_weight for c in constants], axis=1)
-    inverse_scale = np.concatenate([c.inverse_scale for c in constants])
-    stateless = np.array([reversible_magnetization(float(f), chi, h) for c, f in zip(constants, fields)
-                          for chi, h in zip(c.reversible_susceptibility, c.reversible_saturation)])
-    stateless += np.concatenate([c.anhysteretic_weight for c in constants]) * _share_numpy(
-        field * np.concatenate([c.anhysteretic_inverse_scale for c in constants]), kind)
-    relay_target = target - stateless
-    low = field - coercive.max(axis=0)
-    high = field + coercive.max(axis=0)
-
-    def relay_part(offset):
-        play = np.clip(offset[None, :], field - coercive, field + coercive)
-        share = _share_numpy(play * inverse_scale[None, :], kind)
-        return (relay_weight * share).sum(axis=0), play
-
-    for _ in range(iterations):
-        middle = 0.5 * (low + high)
-        below = relay_part(middle)[0] < relay_target
-        low = np.where(below, middle, low)
-        high = np.where(below, high, middle)
-    play = relay_part(0.5 * (low + high))[1]
-    edges = np.cumsum([0] + sizes)
-    return [HEMState(np.ascontiguousarray(play[:, lo:hi])) for lo, hi in zip(edges[:-1], edges[1:])]
-
-
 def simulate_records_hem(records: Sequence[Record], family: LawFamily, zs: np.ndarray) -> List[Optional[np.ndarray]]:
     """:func:`simulate_records` for a HEM family: each record's bank starts at its measured M0. The laws are
     evaluated once per row of ``zs`` for all temperatures, the records of one temperature share one bank of
-    parameters, and the start states of all records are solved together (:func:`hem_start_states`)."""
+    parameters, and the start states of all records are solved together
+    (:func:`~hyst_gym.physics.hem.states_with_magnetization`)."""
     temps = np.array(sorted({r.temperature_K for r in records}))
     values = _hem_values(family, zs, temps)
     batches: List[Optional[HEMBatch]] = []
@@ -587,7 +551,7 @@ def simulate_records_hem(records: Sequence[Record], family: LawFamily, zs: np.nd
     constants = [None if b is None else b.constants() for b in batches]
     which = [int(np.searchsorted(temps, r.temperature_K)) for r in records]
     runnable = [i for i, j in enumerate(which) if batches[j] is not None]
-    states = [] if not runnable else hem_start_states(
+    states = [] if not runnable else states_with_magnetization(
         [constants[which[i]] for i in runnable], batches[which[runnable[0]]].kind,
         np.array([records[i].field[0] for i in runnable]), np.array([records[i].M0 for i in runnable]))
     out: List[Optional[np.ndarray]] = [None] * len(records)

@@ -499,26 +499,43 @@ def state_with_magnetization(batch: HEMBatch, field: float, magnetization, itera
     with the offset). The state of a remanent or measured start; M beyond what the band allows is
     clipped to its nearest reachable value. Solved with scipy's erf: the compiled kernel's (1.5e-7 absolute)
     then starts within 1.5e-7 of M_R of ``magnetization``."""
-    constants = batch.constants()
-    target = np.broadcast_to(np.asarray(magnetization, dtype=np.float64), (batch.size,))
-    stateless = np.array([reversible_magnetization(field, chi, h) for chi, h in
-                          zip(constants.reversible_susceptibility, constants.reversible_saturation)])
-    stateless += constants.anhysteretic_weight * _share_numpy(field * constants.anhysteretic_inverse_scale, batch.kind)
+    return states_with_magnetization([batch.constants()], batch.kind, [field], [magnetization], iterations)[0]
+
+
+def states_with_magnetization(constants, kind: int, fields, magnetizations, iterations: int = 60) -> list:
+    """:func:`state_with_magnetization` for many banks at once, each at its own field: bank ``i``
+    (``constants[i]``, a :class:`HEMConstants`; all of one interaction density ``kind``) at ``fields[i]``
+    (A/m) with M ``magnetizations[i]`` (A/m, scalar or one per model). The banks' models stand side by
+    side in one array, so the bisection takes one numpy pass per step for all of them, and each bank's
+    state is the one it would get alone, bit for bit (every operation is per model)."""
+    sizes = [c.coercive.shape[1] for c in constants]
+    field = np.repeat(np.asarray(fields, dtype=np.float64), sizes)
+    target = np.concatenate([np.broadcast_to(np.asarray(m, dtype=np.float64), (size,))
+                             for m, size in zip(magnetizations, sizes)])
+    coercive = np.concatenate([c.coercive for c in constants], axis=1)
+    relay_weight = np.concatenate([c.relay_weight for c in constants], axis=1)
+    inverse_scale = np.concatenate([c.inverse_scale for c in constants])
+    stateless = np.array([reversible_magnetization(float(f), chi, h) for c, f in zip(constants, fields)
+                          for chi, h in zip(c.reversible_susceptibility, c.reversible_saturation)])
+    stateless += np.concatenate([c.anhysteretic_weight for c in constants]) * _share_numpy(
+        field * np.concatenate([c.anhysteretic_inverse_scale for c in constants]), kind)
     relay_target = target - stateless
-    low = np.full(batch.size, field - constants.coercive.max(axis=0))
-    high = np.full(batch.size, field + constants.coercive.max(axis=0))
+    low = field - coercive.max(axis=0)
+    high = field + coercive.max(axis=0)
 
     def relay_part(offset):
-        play = np.clip(offset[None, :], field - constants.coercive, field + constants.coercive)
-        share = _share_numpy(play * constants.inverse_scale[None, :], batch.kind)
-        return (constants.relay_weight * share).sum(axis=0), play
+        play = np.clip(offset[None, :], field - coercive, field + coercive)
+        share = _share_numpy(play * inverse_scale[None, :], kind)
+        return (relay_weight * share).sum(axis=0), play
 
     for _ in range(iterations):
         middle = 0.5 * (low + high)
         below = relay_part(middle)[0] < relay_target
         low = np.where(below, middle, low)
         high = np.where(below, high, middle)
-    return HEMState(np.ascontiguousarray(relay_part(0.5 * (low + high))[1]))
+    play = relay_part(0.5 * (low + high))[1]
+    edges = np.cumsum([0] + sizes)
+    return [HEMState(np.ascontiguousarray(play[:, lo:hi])) for lo, hi in zip(edges[:-1], edges[1:])]
 
 
 def _share_numpy(scaled, kind):
@@ -564,5 +581,5 @@ __all__ = [
     "SATURATING_REVERSIBLE_PARTS", "STUDENT_T2", "WITH_ANHYSTERETIC_POPULATION", "advance_each", "advance_shared",
     "atan_inline", "coercive_rule", "erf_inline", "field_of", "interaction_density_code", "relay_share",
     "reversible_magnetization", "simulate_hem", "simulate_hem_batch", "simulate_shared", "stateless_magnetization",
-    "stateless_parts", "state_with_magnetization", "validate_hem_parameters",
+    "stateless_parts", "state_with_magnetization", "states_with_magnetization", "validate_hem_parameters",
 ]

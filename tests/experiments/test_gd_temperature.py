@@ -258,24 +258,3 @@ def test_page_section_and_results_tables_are_the_stored_study(capsys):
     with pytest.raises(SystemExit) as exit_info:
         gd.main(["--page"])
     assert exit_info.value.code == 2 and "--from-results" in capsys.readouterr().err
-
-
-def test_batched_start_states_equal_the_physics_layer_bit_for_bit():
-    """hem_start_states solves the start states of many records at once; each must be the state that
-    hem.state_with_magnetization gives for that record alone (banks of different sizes, fields and targets,
-    linear and saturating reversible parts)."""
-    from hyst_gym.physics.hem import HEMBatch, state_with_magnetization
-
-    rng = np.random.default_rng(3)
-    batches = []
-    for size, saturation in ((3, 0.0), (1, 5e3), (4, 2e4)):
-        batches.append(HEMBatch(rng.uniform(5e5, 2e6, size), rng.uniform(0.1, 30.0, size), rng.uniform(50, 3e3, size),
-                                rng.uniform(0.3, 1.5, size), rng.uniform(100, 8e3, size), "normal", 16,
-                                np.full(size, saturation)))
-    fields = np.array([3.0, -12.5, 0.4])
-    targets = np.array([2.0e4, -3.0e5, 1.0e3])
-    states = gd.hem_start_states([b.constants() for b in batches], batches[0].kind, fields, targets)
-    for batch, field, target, state in zip(batches, fields, targets, states):
-        alone = state_with_magnetization(batch, float(field), target)
-        assert state.play.shape == alone.play.shape
-        assert np.array_equal(state.play, alone.play)

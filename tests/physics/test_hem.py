@@ -7,7 +7,7 @@ import pytest
 from scipy import integrate, stats
 
 from hyst_gym.physics.hem import (HEMBatch, HEMParams, HEMState, advance_each, simulate_hem, simulate_hem_batch,
-                                  state_with_magnetization)
+                                  state_with_magnetization, states_with_magnetization)
 
 PARAMS = dict(relay_magnetization=3.0e5, reversible_susceptibility=40.0, coercive_median=20.0, coercive_spread=0.5,
               interaction_scale=25.0)
@@ -149,6 +149,25 @@ def test_state_with_magnetization_starts_at_the_asked_magnetization():
     m = simulate_hem_batch(np.array([5.0]), batch, state)[0]
     np.testing.assert_allclose(m, target, rtol=0, atol=1e-6 * PARAMS["relay_magnetization"])
     assert isinstance(state, HEMState)
+
+
+def test_banks_solved_together_get_the_states_they_get_alone():
+    """Banks of different sizes, fields, targets and reversible parts side by side: each state is the one
+    its bank gets alone, bit for bit, and simulating from it starts at the asked magnetization."""
+    rng = np.random.default_rng(3)
+    batches = [HEMBatch(rng.uniform(5e5, 2e6, size), rng.uniform(0.1, 30.0, size), rng.uniform(50, 3e3, size),
+                        rng.uniform(0.3, 1.5, size), rng.uniform(100, 8e3, size), "normal", 16,
+                        np.full(size, saturation))
+               for size, saturation in ((3, 0.0), (1, 5e3), (4, 2e4))]
+    fields = np.array([3.0, -12.5, 0.4])
+    targets = [2.0e4, -3.0e5, rng.uniform(-1e3, 1e3, 4)]
+    states = states_with_magnetization([b.constants() for b in batches], batches[0].kind, fields, targets)
+    for batch, field, target, state in zip(batches, fields, targets, states):
+        alone = state_with_magnetization(batch, float(field), target)
+        assert state.play.shape == alone.play.shape == (16, batch.size)
+        np.testing.assert_array_equal(state.play, alone.play)
+        m = simulate_hem_batch(np.array([field]), batch, state)[0]
+        np.testing.assert_allclose(m, np.broadcast_to(target, (batch.size,)), rtol=0, atol=1.0)
 
 
 def test_invalid_parameters_are_named():
