@@ -33,6 +33,12 @@ Verdicts:
   is within the noise level (``UNEXPLAINED_RMSE``) and it is not (:func:`confusable_ties`): no single
   name where a family of another slot, which the record may not separate, explains the held-out block
   nearly as well;
+* a *doubted* candidate ties with the winner too (:func:`doubted_ties`): one set aside only because a parameter
+  sits at a bound of its physical range (check 1; every other check passed), of another slot registered as
+  confusable with the winner on this channel set, that predicts the held-out block better than the winner. A
+  bound is a judgement of what is physical, not a measurement: when the record may not separate the two slots
+  and the doubted family predicts better, naming the winner alone would rest on that judgement only, so the
+  verdict is ``ambiguous``, naming both (its note says which parameter sits at which bound);
 * ``unexplained`` -- the base model misses by more than ``UNEXPLAINED_RMSE`` noise units and
   no plausible candidate explains most of it; the report says where the residual lives;
 * ``none`` -- the base model predicts the held-out block to within noise and nothing *material*
@@ -124,10 +130,20 @@ class Plausibility:
     plausible: bool = True
     reasons: list = dataclass_field(default_factory=list)
     block_values: list = dataclass_field(default_factory=list)
+    #: Parameters set aside for sitting at a bound of their physical range (check 1).
+    at_bound: list = dataclass_field(default_factory=list)
 
-    def reject(self, reason: str):
+    def reject(self, reason: str, at_bound: str | None = None):
+        """Set the candidate aside for ``reason``; ``at_bound``: the parameter, when the reason is its bound."""
         self.plausible = False
         self.reasons.append(reason)
+        if at_bound is not None:
+            self.at_bound.append(at_bound)
+
+    @property
+    def only_at_bound(self) -> bool:
+        """Set aside for parameters at their bounds and for nothing else (every other check passed)."""
+        return not self.plausible and len(self.at_bound) == len(self.reasons) > 0
 
 
 def check_plausibility(candidate, noise, blocks: int = BLOCKS) -> Plausibility:
@@ -164,7 +180,7 @@ def _check_bounds(out: Plausibility, effect, fit):
         lower = float("inf") if name in effect.absent_at_zero and p.lower == 0.0 else abs(value - p.lower)
         if min(lower, abs(p.upper - value)) < 1e-3 * span and value != 0.0:
             out.reject(f"{name} = {value:.4g} sits at the bound of its physical range "
-                       f"[{p.lower:.4g}, {p.upper:.4g}]")
+                       f"[{p.lower:.4g}, {p.upper:.4g}]", at_bound=name)
 
 
 def _check_loop_offset(out: Plausibility, fit, bias):
@@ -301,6 +317,22 @@ def confusable_ties(best, plausible, base_heldout, channels) -> list:
             and not (separated and c.heldout_rmse > UNEXPLAINED_RMSE)]
 
 
+def doubted_ties(best, rejected, channels) -> list:
+    """Candidates set aside only for a parameter at its bound that tie with ``best`` all the same (module
+    docstring): each passed every other plausibility check, is of another slot than ``best``, registered as
+    confusable with it on this channel set, and has a lower held-out RMSE than ``best``.
+
+    Why: check 1 reads a fit that runs into a wall as mimicking something else. Yet the bounds of a family's
+    parameters are a judgement of the physical range, and a family of a slot next to it in the registry, which
+    the record may not separate from ``best``'s, may reach its wall because the physics takes another form than
+    the family's (heating that moves the pinning k by more than its linear law in the temperature). When such a
+    candidate predicts the held-out block better, naming ``best`` alone would rest on the bound only; a tie,
+    with the measurement that separates the slots, says what the record shows."""
+    table = CONFUSABLE[channel_set(channels)]
+    return [c for c in rejected if c.plausibility.only_at_bound and slot_of(c.effect) != slot_of(best.effect)
+            and frozenset({c.effect, best.effect}) in table and c.heldout_rmse < best.heldout_rmse]
+
+
 def naming_margin(candidate) -> float:
     """How far a candidate is past the bar for being named (0 at the bar, 1 far past it): it
     halves the base model's held-out RMSE, or brings it within ``EXPLAINED_RMSE`` noise units."""
@@ -335,11 +367,10 @@ def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False, b
     plausible = sorted([c for c in candidates if c.accepted and c.plausibility.plausible],
                        key=lambda c: c.heldout_rmse)
     rejected = [c for c in candidates if c.accepted and not c.plausibility.plausible]
-    notes = [f"{c.effect} fitted better ({100 * c.improvement:.0f} % held-out) but was not named: "
-             f"{'; '.join(c.plausibility.reasons)}" for c in rejected]
+    notes = [_rejected_note(c) for c in rejected]
     best_improvement = max([c.improvement for c in candidates] + [0.0])
     if plausible:
-        return _name(plausible, candidates, base_heldout, channels, notes)
+        return _name(plausible, candidates, base_heldout, channels, notes, rejected)
     if mechanics_pinned and base_residual is not None:
         freed = freeing_candidates(candidates, base_residual)
         if freed:
@@ -351,12 +382,20 @@ def decide(candidates, base_heldout, channels, mechanics_pinned: bool = False, b
     return _none_or_structure(base_heldout, best_improvement, mechanics_pinned, base_structure, notes)
 
 
-def _name(plausible, candidates, base_heldout, channels, notes) -> Decision:
+def _rejected_note(candidate) -> str:
+    return (f"{candidate.effect} fitted better ({100 * candidate.improvement:.0f} % held-out) but was not named: "
+            f"{'; '.join(candidate.plausibility.reasons)}")
+
+
+def _name(plausible, candidates, base_heldout, channels, notes, rejected=()) -> Decision:
     """A plausible candidate explains most of the mismatch: its name, or a tie (``ambiguous``), or
-    ``unexplained`` if it explains only part of it."""
+    ``unexplained`` if it explains only part of it. ``rejected``: the accepted candidates set aside as
+    implausible, of which :func:`doubted_ties` may tie with the best."""
     best = plausible[0]
     tied = [best] + [c for c in plausible[1:] if tied_with(c, best)]
     tied += [c for c in confusable_ties(best, plausible, base_heldout, channels) if all(c is not t for t in tied)]
+    doubted = doubted_ties(best, rejected, channels)
+    tied += doubted
     others = [c for c in candidates if all(c is not t for t in tied)]  # identity: fits hold arrays
     runner = max([reduction(c, base_heldout) for c in others] + [0.0])
     if naming_margin(best) == 0.0 and best.heldout_rmse > EXPLAINED_RMSE:
@@ -365,6 +404,12 @@ def _name(plausible, candidates, base_heldout, channels, notes) -> Decision:
         # margin to the nearest alternative: naming that effect after all
         confidence = (NAMING_IMPROVEMENT - best.improvement) / NAMING_IMPROVEMENT
         return Decision("unexplained", float(np.clip(confidence, 0.0, 1.0)), notes=notes)
+    for c in doubted:
+        notes.remove(_rejected_note(c))
+        notes.append(f"{c.effect} ties with {best.effect} although {', '.join(c.plausibility.at_bound)} "
+                     f"{'sits' if len(c.plausibility.at_bound) == 1 else 'sit'} at a bound of the physical range: "
+                     f"it predicts the held-out block better ({c.heldout_rmse:.2f} against {best.heldout_rmse:.2f} "
+                     "noise units), and the record may not separate their slots")
     weakest = min(reduction(c, base_heldout) for c in tied)
     # margins to both alternatives: another effect (the runner-up), and 'unexplained'
     confidence = float(np.clip(min(1.0 - max(runner, 0.0) / weakest, min(naming_margin(c) for c in tied)),

@@ -352,3 +352,60 @@ def test_a_slot_is_the_slot_without_its_form():
 
     assert slot_of("sensor_map") == slot_of("sensor_gain_drift") == "sensor static map"
     assert slot_of("field_bias") == slot_of("input_map") != slot_of("input_lag")
+
+
+def _at_bound(effect, heldout_rmse, parameter="beta_k", other_reasons=()):
+    """A partial explanation set aside for ``parameter`` at a bound of its physical range (and ``other_reasons``)."""
+    candidate = _partial(effect, heldout_rmse)
+    candidate.plausibility = Plausibility()
+    candidate.plausibility.reject(f"{parameter} = 0.05 sits at the bound of its physical range [-0.05, 0.05]",
+                                  at_bound=parameter)
+    for reason in other_reasons:
+        candidate.plausibility.reject(reason)
+    return candidate
+
+
+def test_a_confusable_family_set_aside_only_at_its_bound_that_predicts_better_ties_with_the_winner():
+    """Heating whose law the record bends (its pinning drift at its bound) predicts the held-out block better than a
+    sensor's gain drift: the record may not separate the two slots, so the gain drift is not named alone; the note
+    says which parameter sits at its bound."""
+    best, doubted = _partial("sensor_gain_drift", 1.6), _at_bound("thermal_drift", 1.1)
+    decision = decide([best, doubted], 5.0, ("magnetization",))
+    assert decision.verdict == "ambiguous"
+    assert [c.effect for c in decision.tied] == ["sensor_gain_drift", "thermal_drift"]
+    assert decision.chosen is best and "displacement beside the magnetization" in decision.advice
+    assert any("thermal_drift ties with sensor_gain_drift" in note and "beta_k" in note for note in decision.notes)
+    assert not any("was not named" in note for note in decision.notes)
+
+
+def test_a_candidate_at_its_bound_does_not_tie_when_worse_unregistered_or_implausible_otherwise():
+    """The gain drift stays named when the heating at its bound predicts worse, when the pair is not registered as
+    confusable (eddy currents), and when the heating also failed another check (its main parameter disagrees
+    across the time blocks); the note then says why it was not named."""
+    best = _partial("sensor_gain_drift", 1.6)
+    assert decide([best, _at_bound("thermal_drift", 1.7)], 5.0, ("magnetization",)).verdict == "sensor_gain_drift"
+    assert decide([best, _at_bound("eddy_current", 1.1, "k_e")], 5.0, ("magnetization",)).verdict == \
+        "sensor_gain_drift"
+    also = _at_bound("thermal_drift", 1.1, other_reasons=["heating disagrees across 3 time blocks"])
+    decision = decide([best, also], 5.0, ("magnetization",))
+    assert decision.verdict == "sensor_gain_drift"
+    assert any("thermal_drift" in note and "was not named" in note for note in decision.notes)
+
+
+def test_the_bound_check_records_which_parameter_sits_at_its_bound():
+    """Only a parameter of the physical range at its bound is recorded (a search range's is not a wall)."""
+    from types import SimpleNamespace
+
+    from hyst_gym.diagnose.decide import _check_bounds
+    from hyst_gym.diagnose.parameter import Parameter
+
+    parameters = {"beta_k": Parameter("beta_k", 0.0, -0.05, 0.05, "1/K"),
+                  "tau_th": Parameter("tau_th", 1.0, 0.01, 100.0, "s", log=True)}
+    effect = SimpleNamespace(parameter_names=("beta_k", "tau_th"), search_ranges=("tau_th",), absent_at_zero=())
+    fit = SimpleNamespace(model=SimpleNamespace(parameters=parameters), values={"beta_k": 0.05, "tau_th": 100.0})
+    out = Plausibility()
+    _check_bounds(out, effect, fit)
+    assert out.at_bound == ["beta_k"] and out.only_at_bound and not out.plausible
+    inside = Plausibility()
+    _check_bounds(inside, effect, SimpleNamespace(model=fit.model, values={"beta_k": 0.02, "tau_th": 100.0}))
+    assert inside.plausible and not inside.only_at_bound
