@@ -396,7 +396,24 @@ def sanity_tier(results: pathlib.Path = RESULTS) -> list:
 AGENT_ORDER = ("ramp", "tuned_open_loop", "ramp_hold", "optimal_design_prior", "direct_design",
                "direct_design_k_known", "direct_design_nominal_k",
                "gradient", "multiple_model",
-               "thermostat", "proportional", "bang_hold", "identify_then_idle", "ppo", "ppo_x3", "sac", "recurrent_ppo")
+               "thermostat", "proportional", "bang_hold", "identify_then_idle", "ppo", "ppo_x3", "sac", "sac_x3",
+               "recurrent_ppo", "recurrent_ppo_x3")
+
+
+def flatness(task: dict) -> list:
+    """The RL flatness check of a task entry: per algorithm with a longer run, (algo and its seeds, base value and
+    CI, the longer run's name and seeds, value and CI, flat), flat when the longer run's value lies inside the base
+    budget's CI."""
+    stat, agents, rows = task["statistic"], task["agents"], []
+    for name, longer in sorted(agents.items()):
+        base = name.rsplit("_x", 1)[0]
+        if longer["kind"] != "rl" or base == name or base not in agents:
+            continue
+        low, high = agents[base]["ci"]
+        rows.append((f"{base} ({agents[base]['runs']} seeds)", agents[base][stat], agents[base]["ci"],
+                     f"{name} ({longer['runs']} seed{'s' if longer['runs'] > 1 else ''})", longer[stat], longer["ci"],
+                     bool(low <= longer[stat] <= high)))
+    return rows
 
 
 def _cell(entry, statistic):
@@ -450,6 +467,16 @@ def markdown(data: dict) -> str:
         cells = [_cell(tasks[t]["agents"][name], tasks[t]["statistic"]) if name in tasks[t]["agents"] else "—"
                  for t in order]
         lines.append(f"| {name} ({kind}) | " + " | ".join(cells) + " |")
+    checks = {t: flatness(tasks[t]) for t in order}
+    if any(checks.values()):
+        lines += ["", "RL flatness check (each algorithm's longer run, on the same draws): flat when its value lies "
+                  "inside the base budget's CI.", ""]
+        for t in order:
+            if checks[t]:
+                lines.append(f"- `{t.split('/')[-1]}`: " + "; ".join(
+                    f"{base} {value:.1f} [{ci[0]:.1f}, {ci[1]:.1f}] -> {name} {longer:.1f} "
+                    f"[{longer_ci[0]:.1f}, {longer_ci[1]:.1f}] ({'flat' if flat else 'not flat'})"
+                    for base, value, ci, name, longer, longer_ci, flat in checks[t]))
     speed = data.get("speed_remeasured")
     if speed:
         lines += ["", f"Env speed (steps/s, single and n = 1024) re-measured by `{speed['command']}` on "

@@ -277,3 +277,21 @@ def test_the_heat_budget_floor_is_read_from_its_results_file_only_where_it_has_t
     assert suite_v2.heated_floor("hyst_gym/HotCalibrateNoisy-v0", path) is None
     committed = suite_v2.heated_floor(CALIBRATE)
     assert committed is not None and committed["value"] > 0
+
+
+def test_flatness_compares_the_longer_run_with_the_base_budget_s_interval():
+    agent = {"kind": "rl", "rms": 2.0, "ci": [1.5, 2.5], "runs": 3, "normalized": {"value": 0.0, "ci": [0.0, 0.0]}}
+    task = {"statistic": "rms", "agents": {"ppo": agent, "ppo_x3": {**agent, "rms": 2.4, "runs": 1},
+                                           "sac": agent, "sac_x3": {**agent, "rms": 1.2, "runs": 1},
+                                           "ramp_hold": {**agent, "kind": "open_loop"}}}
+    rows = suite_v2.flatness(task)
+    assert [(row[0], row[3], row[6]) for row in rows] == [("ppo (3 seeds)", "ppo_x3 (1 seed)", True),
+                                                           ("sac (3 seeds)", "sac_x3 (1 seed)", False)]
+    assert "(not flat)" in suite_v2.markdown({"profile": "reduced", "profile_note": "n", "heldout_draws": 1,
+                                              "rl_budget": "b", "wall_s": 60.0, "package_version": "0",
+                                              "tasks": {CALIBRATE: {**task, "difficulty": 1, "family": "f",
+                                                                    "floor": {"value": 1.0, "kind": "bound"},
+                                                                    "reference": "ramp_hold", "in_suite": True,
+                                                                    "headroom": {"value": 1.0, "ci": [0.5, 1.5]},
+                                                                    "rl_gap": None,
+                                                                    "steps_per_s": {"single": 1, "1024": 1}}}})
