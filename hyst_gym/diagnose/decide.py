@@ -48,7 +48,7 @@ Verdicts:
   ``unexplained``. The report quantifies the structure either way (its share, interval and where
   it lives).
 
-Materiality, not significance (issue 22). Every bar is an effect size in noise units: the
+Materiality, not significance. Every bar is an effect size in noise units: the
 held-out RMSE (``UNEXPLAINED_RMSE``, ``EXPLAINED_RMSE``), its reduction (``ACCEPT_IMPROVEMENT``,
 ``NAMING_IMPROVEMENT``) and the structured share (``MATERIAL_SHARE``). A p-value of a whiteness
 test shrinks with the record length: with thousands of held-out samples, the 1-10 % of the noise
@@ -255,8 +255,8 @@ def tied_with(candidate, best) -> bool:
 
     * ``best`` within ``EXPLAINED_RMSE``: its residual is (nearly) the measurement noise e, and
       d = (s_c^2 - s_b^2) + 2 e (s_c - s_b) with s the two systematic errors, so the noise alone
-      moves the mean of d by 2 rms(r_candidate - r_best)/sqrt(n). This asks the question of the
-      issue, "do the two fit equally well within the noise?": two models whose predictions differ
+      moves the mean of d by 2 rms(r_candidate - r_best)/sqrt(n). This asks the question
+      "do the two fit equally well within the noise?": two models whose predictions differ
       only where the record cannot tell them apart tie, while one that misses a stretch of the
       record by several noise units does not, however short the stretch;
     * ``best`` still misses: both residuals are mostly misfit, which varies along the record, and

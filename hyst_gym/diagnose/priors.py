@@ -33,7 +33,7 @@ def release_prior(base: FitResult, pinned, split: Split, base_heldout) -> tuple[
 
     The prior binds when the released fit lowers the held-out mean square by at least
     ``MATERIAL_SHARE`` (noise units squared); otherwise the record does not determine the pinned
-    parameters, and their sitting at the bound says nothing about missing physics (issue 22).
+    parameters, and their sitting at the bound says nothing about missing physics.
     Returns the record of what was tried and the released fit."""
     params = dict(base.model.parameters)
     for name in pinned:
