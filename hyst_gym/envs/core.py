@@ -144,6 +144,8 @@ OBSERVATION_DOCS = {
     "previous_estimate": "the agent's previous estimate of a, mapped from Theta onto [-1, 1]",
     "estimate_spread": "built-in estimator's uncertainty of a: posterior standard deviation / width(Theta), in [0, 1]",
     "temperature": "measured coil temperature (T − T_ref)/10 K (with temperature_sensor=True)",
+    "heat_used": "the coil's temperature rise above its start (T − T0) / the margin of the prior's hottest start "
+                 "to the limit (1: that start overheats); a function of the applied field's history alone",
     "reference_next": "the dual-control task's displacement reference at the end of the coming step, y / y(Ms)",
     "p_small_loop": "the discriminate task's posterior probability of the small-loop candidate",
     "p_pinning": "the discriminate task's posterior probability of the pinning candidate",
