@@ -1,4 +1,4 @@
-"""Benchmark suite v1 (issue 13): tasks with headroom, floors, baselines and RL, one command.
+"""Benchmark suite v1: tasks with headroom, floors, baselines and RL, one command.
 
     hyst-gym benchmark --suite v1 [--quick] [--tasks ID,ID] [--out DIR] [--no-readme]
     python -m experiments.suite --suite v1 [same options]
@@ -323,7 +323,7 @@ AGENT_ORDER = ("ramp", "tuned_open_loop", "optimal_design_prior", "direct_design
 
 
 def solved_tier(results: pathlib.Path = RESULTS) -> list:
-    """The committed scenarios (issue 5) as the suite's solved tier: best agent against its floor."""
+    """The committed scenarios as the suite's solved tier: best agent against its floor."""
     summary_path, floor_path = results / "summary.json", results / "settle_floor.json"
     if not (summary_path.exists() and floor_path.exists()):
         return []

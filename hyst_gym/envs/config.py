@@ -1,4 +1,4 @@
-"""The frozen configuration of the hyst-gym environments (issue 4).
+"""The frozen configuration of the hyst-gym environments.
 
 One :class:`EnvConfig` describes everything the three environments simulate. Names of
 nested objects are those of the physics and estimation layers:
@@ -48,7 +48,7 @@ ESTIMATOR_NAMES = tuple(ESTIMATORS)  # the registry of the estimation layer, in 
 #: Default adaptation gain gamma of the vector estimator (24)-(25) in the envs (mechanical
 #: transducers), units of y_eps^-1 s^-1 per (A/m per A/m). The paper's 5e10 (§4.2) is a
 #: continuous-time, noise-free gain, and it fails at the env's defaults for two reasons
-#: (measured on the paper's ramp, a = 7012, thetahat(0) = 6990; issue 5, lumped scenario):
+#: (measured on the paper's ramp, a = 7012, thetahat(0) = 6990; the lumped scenario):
 #:
 #: * sampled-data instability: with y_eps = B^T P ytilde the adaptation rate is about
 #:   gamma*B^T P (-A^-1 B)*phi**2 = gamma*2.28e-10*phi**2, up to 1.2e3 1/s on the ramp

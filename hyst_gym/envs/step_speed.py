@@ -2,9 +2,9 @@
 
 Measures env steps per second and simulated seconds per wall second for a single env
 (through ``gymnasium.make``, wrappers included) and for the native vector env at
-n = 1, 64 and 1024. Targets (issue 4, 2-core machine): >= 5,000 steps/s single and
+n = 1, 64 and 1024. Targets (2-core machine; ``docs/targets.md``): >= 5,000 steps/s single and
 >= 100,000 aggregate steps/s at n = 1024. Each task of the benchmark suite
-(:mod:`hyst_gym.envs.suite_v1`) is timed the same way, single and at n = 1024 (issue 13 target:
+(:mod:`hyst_gym.envs.suite_v1`) is timed the same way, single and at n = 1024 (targets:
 >= 20,000 and >= 200,000 steps/s). Where the time goes: run
 ``python -m cProfile -s tottime -m hyst_gym.envs.step_speed``.
 """
@@ -77,7 +77,7 @@ def run_benchmark(report) -> dict:
             "env_benchmark_config": config.summary(), "suite_steps_per_s": run_suite_benchmark(report)}
 
 
-#: the suite's vector size and targets (issue 13), steps/s
+#: the suite's vector size and targets, steps/s
 SUITE_VECTOR_SIZE = 1024
 SUITE_TARGETS = {"single": 20_000, str(SUITE_VECTOR_SIZE): 200_000}
 

@@ -1,4 +1,4 @@
-"""Benchmark suite v1 (issue 13): versioned task presets behind registered Gymnasium ids.
+"""Benchmark suite v1: versioned task presets behind registered Gymnasium ids.
 
 Each task is a preset of :class:`~hyst_gym.envs.config.EnvConfig` (overrides of its fields,
 plain values and frozen physics dataclasses) behind an id with a version suffix, made like

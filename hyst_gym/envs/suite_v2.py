@@ -1,4 +1,4 @@
-"""Benchmark suite v2 (issue 23): task envs with their own stories, behind versioned ids.
+"""Benchmark suite v2: task envs with their own stories, behind versioned ids.
 
 Two kinds of task, both on the compiled simulator of :mod:`hyst_gym.envs.core`:
 
