@@ -1,4 +1,4 @@
-"""The adaptive estimators as agents of ``Estimation-v0`` (issue 5, "Agents" 2).
+"""The adaptive estimators as agents of ``Estimation-v0``.
 
 In ``Estimation-v0`` the excitation is the environment's schedule (the paper's ramp by
 default) and the action is the estimate of a, normalized to Theta. The agent decodes

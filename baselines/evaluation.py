@@ -4,7 +4,7 @@ Every agent (schedule, design, greedy, estimator, RL policy) is evaluated by the
 function on the same native vector environment, one sub-environment per evaluation
 draw, so all agents see the same draws of temperature, drift and noise (the evaluation protocol in README, "Benchmark").
 
-Per-episode metrics (issue 5, "Experiments"):
+Per-episode metrics:
 
 * ``settle_time_s`` -- first time after which |a_estimate - a_true| stays within
   ``band_fraction*a_true`` (0.1 %) to the end; ``nan`` if never (censored later);

@@ -8,7 +8,7 @@ zero-mean multisine cannot). The field is then passed through the common slew li
 (:func:`~baselines.schedules.apply_limits`), so the design obeys the same limits as every other agent.
 The period repeats over the episode.
 
-Criterion (issue 5, "Agents" 3): the log Fisher information ``log I(a)``
+Criterion: the log Fisher information ``log I(a)``
 (:mod:`baselines.information`) of one period
 
 * at the nominal a (``a_values=[7012]``, a locally D-optimal design), or

@@ -1,4 +1,4 @@
-"""Alternative training rewards for the excitation policy (issue 5, "Ablations": reward form).
+"""Alternative training rewards for the excitation policy (the reward-form ablation).
 
 The environment's own reward (``Excitation-v0``) is the *dense error* reward
 ``-|a_estimate - a_true| / width(Theta)`` per step: it needs the truth ``a_true``, which a

@@ -8,7 +8,7 @@ Scenarios with ``trained_in`` set are evaluation-only (generalization): they pla
 schedules, designs and policies of another scenario.
 
 Seeds: every agent is evaluated on :data:`HELDOUT_SEEDS` (50 draws of temperature, drift
-and noise, issue 5 "Statistical protocol"). Learning curves use :data:`VALIDATION_SEEDS`
+and noise). Learning curves use :data:`VALIDATION_SEEDS`
 and schedule tuning :data:`TUNING_SEEDS`; the three sets are disjoint.
 """
 

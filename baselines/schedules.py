@@ -6,7 +6,7 @@ same H. All of them are then passed through :func:`apply_limits`, the one place 
 the common field limit ``|H| <= field_max`` and slew limit ``|dH/dt| <= slew_max`` are
 enforced for every agent of the benchmark (schedules, optimal design, greedy, RL).
 
-Schedules (issue 5, "Agents" 1):
+Schedules:
 
 * :class:`Ramp` -- the paper's input (§4.1): a linear ramp in H that drives M towards
   saturation, ``H = peak * min(t/duration, 1)``; the paper uses about 1e5 A/m over 6 s.
@@ -210,8 +210,8 @@ class RandomField(Schedule):
 #: name -> schedule class
 SCHEDULES = {cls.name: cls for cls in (Ramp, Sine, Chirp, MultilevelPRBS, SchroederMultisine, RandomField)}
 
-#: The documented tuning grids (issue 5: "each schedule is tuned by a small documented
-#: grid search"). Amplitudes are in A/m, frequencies in Hz, periods in s. The ramp is the
+#: The documented tuning grids (each schedule is tuned by a small documented grid search).
+#: Amplitudes are in A/m, frequencies in Hz, periods in s. The ramp is the
 #: paper's input and is reported untuned (its grid is the single paper setting) and tuned.
 #: Frequencies are low because of the common slew limit (5e4 A/m/s by default): a full
 #: 1e5 A/m sine above 0.08 Hz is already slew-limited into a triangle. The ramp's grid

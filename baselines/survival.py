@@ -1,7 +1,7 @@
 """Settle times with censoring, and Kaplan-Meier survival curves.
 
 A settle time is the first time after which ``|a_estimate - a_true|`` stays within the
-band (0.1 % of a_true, issue 5) until the end of the episode. A run that is outside the
+band (0.1 % of a_true) until the end of the episode. A run that is outside the
 band at its last step never settled: it is *censored* at the episode length, not dropped
 (dropping would make a bad agent look good). Survival here is the probability of *not
 yet* having settled at time t.

@@ -1,6 +1,6 @@
 """Playing a policy in an environment whose observation layout differs from its training one.
 
-The generalization experiments (issue 5, "Experiments" 4) evaluate policies trained on
+The generalization experiments evaluate policies trained on
 the first-order plant (observation ``output, field, elapsed, a_estimate, ...``) on the
 FEM rod, whose observation starts with the tip ``displacement, velocity``. Both outputs
 are normalized the same way by the environment (by their static value at M = Ms,

@@ -1,4 +1,4 @@
-"""Reward ablation (issue 5, "Ablations"): dense error reward, information increment, band time.
+"""Reward ablation: dense error reward, information increment, band time.
 
     python -m experiments.ablation_reward [--timesteps 50000] [--seeds 10] [--workers 2]
                                           [--arms dense,information,band] [--force]

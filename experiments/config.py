@@ -1,4 +1,4 @@
-"""The declared list of experiment configurations (issue 5, "Experiments").
+"""The declared list of experiment configurations.
 
 :func:`declared_jobs` returns the jobs of a *profile* in dependency stages: stage 0
 tunes the schedules, designs the optimal inputs and trains the RL policies; stage 1
@@ -91,7 +91,7 @@ SCENARIO_NAMES = ("paper", "drift", "lumped")
 #: Agents run in the lumped scenario (its plant is slow to simulate, so the set is reduced;
 #: RL is trained in the paper and drift scenarios only).
 LUMPED_AGENTS = ("ramp", "sine", "optimal_design", "minmax", "multiple_model")
-#: Generalization (issue 5, "Experiments" 4): evaluation-only scenarios and the agents run
+#: Generalization: evaluation-only scenarios and the agents run
 #: there; each plays the artifacts of its ``Scenario.trained_in`` (drift or paper).
 GENERALIZATION = {"drift_hot": ("sine", "ppo_stack8", "ppo_info_stack8"),
                   "drift_noisy": ("sine", "ppo_stack8", "ppo_info_stack8"),

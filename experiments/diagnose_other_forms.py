@@ -1,4 +1,4 @@
-"""Blind study of the mismatch tool on recordings whose physics takes other forms than its own (issue 22).
+"""Blind study of the mismatch tool on recordings whose physics takes other forms than its own.
 
 Recordings come from :mod:`experiments.other_forms` (forms the tool does not use, other
 numerics). For every case, channel set the case can show and seed, the recording is written

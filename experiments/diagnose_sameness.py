@@ -13,8 +13,8 @@ both channels, ``--samples`` samples each; with ``--long``, also the three own-g
 ``--compare`` prints every recording whose verdict, tie or confidence differs, and the largest relative
 change of a held-out RMSE; it exits 1 when a verdict or a tie differs.
 
-Committed: ``experiments/results/diagnose/sameness_before.json`` (the tool at 29ec4da, before the speed work of
-issue 31) and ``sameness_after.json`` (at 635a46e, after it), both with ``--long``.
+Committed: ``experiments/results/diagnose/sameness_before.json`` (the tool at 29ec4da, before the speed work)
+and ``sameness_after.json`` (at 635a46e, after it), both with ``--long``.
 """
 
 from __future__ import annotations

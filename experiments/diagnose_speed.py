@@ -1,5 +1,5 @@
-"""Speed of the mismatch tool, one recording at a time (issue 31: at most 20 s per 20,000-sample
-recording on a 2-core machine; issue 12 asked 60 s).
+"""Speed of the mismatch tool, one recording at a time (target: at most 20 s per 20,000-sample
+recording on a 2-core machine, :mod:`experiments.targets`).
 
 The concealed study (:mod:`experiments.diagnose_concealed`) times every recording, but with its
 worker processes sharing the cores, so its times mix the tool's cost with the load. This script

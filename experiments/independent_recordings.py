@@ -122,7 +122,7 @@ EFFECT_SPECS = {spec.name: spec for spec in (
     EffectSpec("delta_e", True, True, False, "Delta-E effect: khat*(1 + beta*(M/Ms)^2)"),
     EffectSpec("small_loop", True, False, True,
                "Rayleigh region: reversible wall bowing adds chi_rev*(1 - (M/Ms)^2) to dM/dH"),
-    # named by the tool's flexible families since issue 22 (sensor_map, input_map)
+    # named by the tool's flexible families (sensor_map, input_map)
     EffectSpec("sensor_nonlinearity", True, False, False, "cubic sensor gain on each output sensor"),
     EffectSpec("amplifier_saturation", True, False, True,
                "current amplifier soft-saturates; the recorded field is the commanded one"),
@@ -131,7 +131,7 @@ EFFECT_SPECS = {spec.name: spec for spec in (
     EffectSpec("two_phase_rod", False, False, True,
                "inhomogeneous rod: volume fraction w of a second hysteresis material"),
 )}
-#: Effects the tool names by a family of another name (its flexible families, issue 22): the cubic
+#: Effects the tool names by a family of another name (its flexible families): the cubic
 #: sensor gain is one of its sensor static maps, the amplifier's saturation one of its input maps.
 TOOL_NAMES = {"sensor_nonlinearity": "sensor_map", "amplifier_saturation": "input_map"}
 #: The tool's additive sensor terms that this generator does not conceal (experiments/other_forms.py does).

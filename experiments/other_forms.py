@@ -1,4 +1,4 @@
-"""Synthetic recordings whose physics takes OTHER FORMS than the mismatch tool's equations (issue 22).
+"""Synthetic recordings whose physics takes OTHER FORMS than the mismatch tool's equations.
 
 The mismatch tool (:mod:`hyst_gym.diagnose`) names the slot of its model chain that a recording's
 concealed physics fills. Its study generators write that physics in the tool's own forms (or the

@@ -1,4 +1,4 @@
-"""Which persistent-excitation test predicts that the estimate settles? (issue 13, "PE diagnostics")
+"""Which persistent-excitation test predicts that the estimate settles?
 
     python -m experiments.pe_prediction [--episodes N] [--json FILE] [--markdown FILE] [--figure FILE]
                                         [--scenarios paper,drift] [--rl-seeds N] [--agents A,B,...]

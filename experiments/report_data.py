@@ -251,7 +251,7 @@ def compute_used(raw):
             "total_env_steps": int(sum(v["env_steps"] for v in by_kind.values()))}
 
 
-#: history ablation (issue 5, "Ablations"): alternative -> (its frame-stacked reference, with
+#: history ablation: alternative -> (its frame-stacked reference, with
 #: the same reward and step budget; what the alternative is)
 HISTORY_ALTERNATIVES = {
     "ppo_stack1": ("ppo_stack8", "no history, 1 frame"),

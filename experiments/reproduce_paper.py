@@ -203,7 +203,7 @@ def main(args) -> int:
     return 0
 
 
-#: the settle band of the summary: 0.1 % of the true a (issue 5)
+#: the settle band of the summary: 0.1 % of the true a
 SETTLE_BAND = 1e-3 * A_TRUE
 
 

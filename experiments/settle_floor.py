@@ -2,7 +2,7 @@
 
     python -m experiments.settle_floor [--rl-seeds 10]
 
-Issue 5's targets ask the best RL policy for half the ramp's settle time in ``paper`` and
+The paper scenario's targets ask the best RL policy for half the ramp's settle time in ``paper`` and
 half the best schedule's RMS error in ``drift``. This script computes, from the physics
 and the estimator alone, the linearized bound of :mod:`hyst_gym.estimation.convergence`:
 under the common slew limit the field, and with it the sensitivity ``|dM/da|`` that drives
