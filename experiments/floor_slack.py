@@ -19,7 +19,7 @@ displacement-only one. This script checks the candidate reasons:
 
 Writes ``experiments/results/floor_slack.json``.
 
-    python -m experiments.floor_slack                         # 2048 fresh draws per task
+    python -m experiments.floor_slack                         # 4096 fresh draws per task (the committed JSON)
     python -m experiments.floor_slack --draws 16 --subset 4 --boot 50 --out /tmp/slack.json
 
 Bad arguments give a one-line error and exit status 2.
@@ -78,21 +78,17 @@ def agents_of(task, tuned: dict) -> dict:
             "ramp_hold": task.design_agent([Design(tuned["ramp_hold"], ramp_hold(task.config, peak))])}
 
 
-def rms_interval(mean_squares: np.ndarray, n_boot: int, rng) -> list:
-    picks = rng.integers(0, mean_squares.size, size=(n_boot, mean_squares.size))
-    boot = np.sqrt(mean_squares[picks].mean(axis=1))
-    return [float(np.percentile(boot, 2.5)), float(np.percentile(boot, 97.5))]
-
-
-def run(draws: int, subset: int, n_boot: int, tasks, seed: int = 0) -> dict:
+def run(draws: int, subset: int, n_boot: int, tasks) -> dict:
+    """Intervals: the suite's bootstrap (:func:`experiments.suite.v2.bootstrap`, draws resampled jointly across
+    the two tasks for the paired difference)."""
     from experiments.suite import common
     from experiments.suite.kinds import task_kind
+    from experiments.suite.v2 import bootstrap
 
     suite = json.loads(SUITE_RESULTS.read_text())
     floors = json.loads(FLOORS.read_text())["tasks"]
     heldout = [int(s) for s in suite["seeds"]["heldout"]]
     fresh = list(range(FRESH_SEED, FRESH_SEED + draws))
-    rng = np.random.default_rng(seed)
     record = {"plants": {task_id: plant_checks(task_id) for task_id in PAIR}, "tasks": {}}
     per_seed = {}
     for task_id in tasks:
@@ -105,8 +101,7 @@ def run(draws: int, subset: int, n_boot: int, tasks, seed: int = 0) -> dict:
             replay, draws_held, _ = common.play(agent, task, heldout)
             scores, draws_fresh, _ = common.play(agent, task, fresh)
             per_seed[(task_id, name)] = (scores, np.asarray(draws_fresh["temperature"]))
-            rms = float(np.sqrt(scores.mean()))
-            ci = rms_interval(scores, n_boot, rng)
+            rms, ci = bootstrap(task.statistic, n_boot, scores)
             usable = (draws // subset) * subset
             subsets = np.sqrt(scores[:usable].reshape(-1, subset).mean(axis=1)) / floor
             out["agents"][name] = {
@@ -123,14 +118,13 @@ def run(draws: int, subset: int, n_boot: int, tasks, seed: int = 0) -> dict:
         record["tasks"][task_id] = out
     if all(task_id in tasks for task_id in PAIR):
         paired = {}
+        statistic = task_kind(PAIR[0]).statistic
         for name in ("thermostat", "ramp_hold"):
             first, t_first = per_seed[(PAIR[0], name)]
             second, t_second = per_seed[(PAIR[1], name)]
-            picks = rng.integers(0, draws, size=(n_boot, draws))
-            diff = np.sqrt(second[picks].mean(axis=1)) - np.sqrt(first[picks].mean(axis=1))
+            difference, difference_ci = bootstrap(statistic, n_boot, second, first, combine=lambda a, b: a - b)
             paired[name] = {"same_start_temperatures": bool(np.allclose(t_first, t_second)),
-                            "rms_difference": float(np.sqrt(second.mean()) - np.sqrt(first.mean())),
-                            "rms_difference_ci": [float(np.percentile(diff, 2.5)), float(np.percentile(diff, 97.5))],
+                            "rms_difference": difference, "rms_difference_ci": difference_ci,
                             "per_draw_error_correlation": float(np.corrcoef(np.sqrt(first), np.sqrt(second))[0, 1])}
         record["paired_displacement_minus_noisy"] = paired
     return record
@@ -138,7 +132,7 @@ def run(draws: int, subset: int, n_boot: int, tasks, seed: int = 0) -> dict:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m experiments.floor_slack", description=__doc__.splitlines()[0])
-    parser.add_argument("--draws", type=int, default=2048, help="fresh draws per task and agent (>= 2)")
+    parser.add_argument("--draws", type=int, default=4096, help="fresh draws per task and agent (>= 2)")
     parser.add_argument("--subset", type=int, default=24, help="draws per subset (the reduced profile's 24)")
     parser.add_argument("--boot", type=int, default=2000, help="bootstrap resamples")
     parser.add_argument("--pair-only", action="store_true", help="only the two tasks that share a floor")
