@@ -87,15 +87,15 @@ class Profile:
 
 
 #: the reduced profile's RL budgets (the quick profile evaluates the models they left)
-SESSION_STEPS = {"ppo": 50_000, "sac": 5_000, "recurrent_ppo": 15_000}
-SESSION_FLAT = {"ppo": (3, 1, None), "sac": (3, 1, None),
+REDUCED_STEPS = {"ppo": 50_000, "sac": 5_000, "recurrent_ppo": 15_000}
+REDUCED_FLAT = {"ppo": (3, 1, None), "sac": (3, 1, None),
                 # RecurrentPPO x3 took 500-960 s a run on the loaded 2-core machine: two tasks only
                 "recurrent_ppo": (3, 1, ("hyst_gym/DisplacementOnly-v0", "hyst_gym/DriftJump-v0"))}
 PROFILES = {
     "full": Profile("full", 50, 10, 240, 200, 10, {"ppo": 100_000, "sac": 15_000, "recurrent_ppo": 100_000},
                     {"ppo": (3, 10, None), "sac": (3, 10, None), "recurrent_ppo": (3, 10, None)}, 2000, True),
-    "reduced": Profile("reduced", 24, 10, 40, 40, 3, SESSION_STEPS, SESSION_FLAT, 1000, True),
-    "quick": Profile("quick", 16, 10, 12, 20, 3, SESSION_STEPS, SESSION_FLAT, 300, False),
+    "reduced": Profile("reduced", 24, 10, 40, 40, 3, REDUCED_STEPS, REDUCED_FLAT, 1000, True),
+    "quick": Profile("quick", 16, 10, 12, 20, 3, REDUCED_STEPS, REDUCED_FLAT, 300, False),
 }
 
 
