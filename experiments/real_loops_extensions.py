@@ -21,7 +21,9 @@ they are reported here as what was tried, not chosen by anything.
 
 Besides, for each loop, the relative permeability right after the field reversal (slope of B/mu0 over the first
 10 % of the field range after the minimum), measured and predicted by the chosen candidate and by the HEM
-with the population: the reversible permeability the small loops start from.
+with the population: the reversible permeability the small loops start from. And the chosen fit's limit for
+loops of vanishing amplitude, 1 + ``hysteresis.initial_susceptibility``, with the gain by which the mean field
+amplifies its reversible part there.
 
     .venv/bin/python -m experiments.real_loops_extensions   # writes real_loops_extensions.json and the page section
 """
@@ -38,8 +40,9 @@ from scipy.optimize import least_squares
 from experiments import real_loops as rl
 from hyst_gym.diagnose.report import physical_params
 from hyst_gym.diagnose.model import noise_level
+from hyst_gym.physics.anhysteretic import anhysteretic_magnetization
 from hyst_gym.physics.hem import HEMBatch, simulate_hem_batch
-from hyst_gym.physics.hysteresis import HysteresisBatch, simulate_batch
+from hyst_gym.physics.hysteresis import HysteresisBatch, HysteresisParams, initial_susceptibility, simulate_batch
 
 JSON = rl.RESULTS / "real_loops_extensions.json"
 AREA = "real-loops-extensions"
@@ -231,6 +234,12 @@ def study(stem):
             entry[name] = reversal_permeability(H, rl.MU0 * (H + m[H.size:]))
         permeability[f"{np.max(np.abs(H)):.3g} A/m"] = entry
     out["reversal_permeability"] = permeability
+    values = physical_params(chosen)
+    params = HysteresisParams(**{n: float(values[n]) for n in ("a", "k", "alpha", "Ms", "c", "chi_r")},
+                              anhysteretic=values["anhysteretic"])
+    chi = initial_susceptibility(params)
+    man_slope = float(anhysteretic_magnetization(0.0, params.a, params.Ms, params.anhysteretic)[1])
+    out["initial_susceptibility"] = {"chi": chi, "feedback_gain": (chi - params.chi_r) / (params.c * man_slope)}
     return out
 
 
@@ -262,6 +271,13 @@ def page_section(payload) -> str:
     for stem, name in rl.MATERIALS.items():
         for loop, values in payload[stem]["reversal_permeability"].items():
             lines.append(f"| {name} | {loop} | {values['measured']:.0f} | {values[CHOSEN]:.0f} | {values[HEM]:.0f} |")
+    limits = [(rl.MATERIALS[stem], payload[stem]["initial_susceptibility"]) for stem in rl.MATERIALS
+              if "initial_susceptibility" in payload[stem]]
+    lines.append("\nAt vanishing amplitude the chosen fit's relative permeability tends to 1 + its initial "
+                 "susceptibility (`hysteresis.initial_susceptibility`): "
+                 + ", ".join(f"{name} {1 + limit['chi']:.0f}" for name, limit in limits)
+                 + "; the mean field amplifies its reversible part there "
+                 + " and ".join(f"{limit['feedback_gain']:.1f}-fold" for _, limit in limits) + ".")
     run = payload["run"]
     lines.append("\nFit CPU time of the extensions: " + ", ".join(
         f"{rl.MATERIALS[stem]} {payload[stem]['reversal_pinning']['cpu_seconds']:.1f} s and "

@@ -465,6 +465,26 @@ def _small_loop_fading(magnetization, lane):
 
 
 @njit(cache=True, error_model="numpy")
+def small_loop_magnetization_slope(field, magnetization, delta, a, k, alpha, Ms, c, chi_r, kind):
+    """dM/dH of :data:`SMALL_LOOP_EXTENSION` at one state (fields in A/m), for a field moving in direction
+    ``delta`` (+-1): :func:`magnetization_slope` plus the fading reversible term (the kernels' arithmetic)."""
+    return _small_loop_slope(field, magnetization, delta, lane_constants(a, k, alpha, Ms, c, delta), chi_r, kind)
+
+
+def initial_susceptibility(params: HysteresisParams) -> float:
+    """Relative susceptibility dM/dH (dimensionless) at the demagnetized state, H = 0 and M = 0.
+
+    There M equals Man, so the irreversible term of (6) is off and only the reversible part acts:
+    ``c*Man'(0)/(1 - alpha*c*Man'(0)) + chi_r`` with ``Man'(0) = Ms/a`` (Ising) or ``Ms/(3a)`` (Langevin) --
+    the slope that loops of vanishing amplitude around the demagnetized state tend to (the initial
+    permeability is ``1 +`` this). The factor ``1/(1 - alpha*c*Man'(0))`` is the mean-field feedback on the
+    reversible part. Unchanged by the reversal-dependent pinning, which weighs only the irreversible term.
+    """
+    return float(small_loop_magnetization_slope(0.0, 0.0, 1.0, params.a, params.k, params.alpha, params.Ms,
+                                                params.c, params.chi_r, anhysteretic_kind(params.anhysteretic)))
+
+
+@njit(cache=True, error_model="numpy")
 def _advance_bank_small_loop(magnetization, field_from, field_to, alpha, Ms, c, chi_r, constants, kind,
                              max_field_step):
     """:func:`_advance_bank` with the small-loop slope; ``constants`` from :func:`bank_constants`."""
@@ -691,6 +711,6 @@ __all__ = [
     "DEFAULT_MAX_FIELD_STEP", "HysteresisParams", "HysteresisBatch", "ISING", "LANGEVIN", "REVERSAL_PINNING",
     "SMALL_LOOP_EXTENSION", "reversal_weight", "simulate_shared_reversal",
     "advance_each", "advance_one", "advance_shared", "advance_shared_small_loop", "simulate_shared_small_loop",
-    "magnetization_slope", "simulate_batch",
+    "initial_susceptibility", "magnetization_slope", "simulate_batch", "small_loop_magnetization_slope",
     "simulate_magnetization", "simulate_shared", "substep_count", "validate_hysteresis_parameters",
 ]

@@ -258,3 +258,39 @@ def test_page_section_and_results_tables_are_the_stored_study(capsys):
     with pytest.raises(SystemExit) as exit_info:
         gd.main(["--page"])
     assert exit_info.value.code == 2 and "--from-results" in capsys.readouterr().err
+
+
+def test_fit_takes_the_steps_of_separate_residual_and_jacobian_calls(synthetic):
+    """A domain-wall fit simulates each trial point with its forward-difference neighbours in one bank.
+    Every model of a bank runs on its own, so the point's column equals the point simulated alone, bit
+    for bit, and the fit ends where the former separate calls ended."""
+    family = gd.FAMILIES["smooth_small_loop"]
+    z = family.to_z(family.x0)
+    bank = np.repeat(z[None, :], 4, axis=0)
+    bank[1:, :3] += 1e-4 * np.eye(3)
+    together = gd.simulate_records(synthetic, family, bank)
+    alone = gd.simulate_records(synthetic, family, z[None, :])
+    assert all(np.array_equal(t[:, 0], a[:, 0]) for t, a in zip(together, alone))
+
+    from scipy.optimize import least_squares
+    from threadpoolctl import threadpool_limits
+
+    records = synthetic[:4]
+    lo, hi = family.bounds_z()
+    z0 = np.clip(z, lo + 1e-9, hi - 1e-9)
+
+    def fun(x):
+        return gd._scaled_residuals(records, gd.simulate_records(records, family, x[None, :]))[:, 0]
+
+    def jac(x):
+        xs = np.repeat(x[None, :], x.size + 1, axis=0)
+        steps = np.where(xs[0] + gd.FD_STEP <= hi, gd.FD_STEP, -gd.FD_STEP)
+        xs[1:] += np.diag(steps)
+        R = gd._scaled_residuals(records, gd.simulate_records(records, family, xs))
+        return (R[:, 1:] - R[:, :1]) / steps
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        separate = least_squares(fun, z0, jac=jac, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=12,
+                                 xtol=1e-8, ftol=1e-8)
+    fit = gd.fit_family(records, family, max_nfev=12)
+    assert fit.params == family.from_z(separate.x) and fit.nfev == separate.nfev

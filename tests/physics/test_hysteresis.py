@@ -366,6 +366,37 @@ def test_small_loop_batch_dispatch_and_errors():
         HysteresisParams(chi_r=-1.0)
 
 
+
+from hyst_gym.physics.hysteresis import (initial_susceptibility, magnetization_slope,  # noqa: E402
+                                         small_loop_magnetization_slope)
+
+
+@pytest.mark.parametrize("curve", ["ising", "langevin"])
+def test_initial_susceptibility_is_the_reversible_slope_that_vanishing_loops_reach(curve):
+    """At the demagnetized state the irreversible term of (6) is off, so the slope is the reversible part with
+    its mean-field feedback, c*Man'(0)/(1 - alpha*c*Man'(0)) + chi_r; loops around it of shrinking amplitude
+    approach that slope after their reversal. chi_r = 0: the slope of (6), bit for bit."""
+    p = dict(a=80.0, k=50.0, alpha=2.5e-4, Ms=2.6e5, c=0.8, anhysteretic=curve)
+    kind = HysteresisParams(**p).kind
+    for state in ((0.0, 0.0, 1.0), (30.0, 1e5, -1.0), (-5.0, 2e4, 1.0)):
+        assert small_loop_magnetization_slope(*state, p["a"], p["k"], p["alpha"], p["Ms"], p["c"], 0.0, kind) == \
+            magnetization_slope(*state, p["a"], p["k"], p["alpha"], p["Ms"], p["c"], kind)
+    man_slope = p["Ms"] / p["a"] / (1.0 if curve == "ising" else 3.0)
+    for chi_r in (0.0, 1400.0):
+        expected = p["c"] * man_slope / (1 - p["alpha"] * p["c"] * man_slope) + chi_r
+        chi = initial_susceptibility(HysteresisParams(**p, chi_r=chi_r))
+        assert chi == pytest.approx(expected, rel=1e-12)
+        assert initial_susceptibility(HysteresisParams(**p, chi_r=chi_r, rayleigh_field=10.0)) == chi
+        slopes = []
+        for peak in (4.0, 1.0, 0.25):  # the slope right after the reversal of a small loop from demagnetized
+            field = np.concatenate([np.linspace(0, peak, 50), np.linspace(peak, -peak, 100),
+                                    np.linspace(-peak, -0.99 * peak, 5)])
+            m = simulate_magnetization(field, **p, chi_r=chi_r, max_field_step=peak / 1000)
+            slopes.append((m[-1] - m[-5]) / (field[-1] - field[-5]))
+        assert abs(slopes[2] - chi) < abs(slopes[0] - chi)
+        assert slopes[2] == pytest.approx(chi, rel=0.01)
+
+
 # --------------------------------------------------------------- reversal-dependent pinning
 
 from hyst_gym.physics.hysteresis import reversal_weight, simulate_shared, simulate_shared_reversal  # noqa: E402
