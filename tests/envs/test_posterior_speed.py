@@ -151,6 +151,42 @@ def test_the_step_in_two_threads_is_the_step_in_one_call(task, k_prior, monkeypa
     assert np.isfinite(results[0][1]).all() and np.ptp(results[0][0]) > 1.0  # the posterior did move
 
 
+@pytest.mark.parametrize("task, k_prior", [("hyst_gym/HotCalibrate-v0", None),
+                                           ("hyst_gym/DisplacementOnly-v0", None),
+                                           ("hyst_gym/HotCalibrateUnknownK-v0", K_PRIOR)])
+def test_the_node_plants_step_as_a_plain_simulator_per_node_bit_for_bit(task, k_prior, monkeypatch):
+    # posterior_step does once what is the same for several node plants (the field and the Joule power per
+    # sub-env, the temperature and a per start temperature): every node-plant array must stay what the simulator's
+    # own step (plant_step, one plant at a time) makes of each node, under moving, held and saturated fields,
+    # across restarts, in two threads
+    monkeypatch.setattr(posterior_module, "SPLIT_MIN_NODES", 1)
+    monkeypatch.setattr(posterior_module, "step_threads", lambda: 2)
+    n = 3
+    posterior = GridPosterior(task_config_v2(task), [0], n, k_prior)
+    assert len(posterior._blocks) == 2
+    posterior.restart(np.arange(n))
+    slow = [_slow_nodes(posterior) for _ in range(n)]
+    per = posterior.nodes * posterior.k_nodes
+    rng = np.random.default_rng(12)
+    for t in range(100):
+        # random, then commands held: the field reaches 30 kA/m and stays there, or its limits (commands past them)
+        field = rng.uniform(-1.0, 1.0, n) if t < 25 else np.array([0.3, 2.0, -3.0])
+        posterior.advance(rng.normal(0.0, 0.05, (n, 1)), np.arange(n), field)
+        for row in range(n):
+            slow[row].step(np.column_stack([np.full(per, min(max(field[row], -1.0), 1.0)), np.zeros(per)]))
+        if t == 30:
+            posterior.restart(np.array([1]))
+            slow[1] = _slow_nodes(posterior)
+        for name in NODE_ARRAYS:
+            now = getattr(posterior.sim, name)
+            now = now.reshape((n, per) + now.shape[1:])
+            for row in range(n):
+                assert np.array_equal(_bits(now[row]), _bits(getattr(slow[row], name))), (t, name, row)
+    field_limit = posterior.config.field_limit
+    assert np.array_equal(posterior.sim.field.reshape(n, per)[:, 0], [0.3 * field_limit, field_limit, -field_limit])
+    assert posterior.sim.steps.max() == 100 and np.ptp(posterior.sim.temperature) > 1.0
+
+
 def test_the_grid_posterior_refuses_a_drifting_ambient_of_unknown_rate():
     config = task_config_v2("hyst_gym/HotCalibrate-v0", ambient_drift_rate_range=(-0.05, 0.05))
     with pytest.raises(ValueError, match="ambient_drift_rate_range"):
