@@ -14,7 +14,8 @@ from dataclasses import replace
 import numpy as np
 
 from .decide import ACCEPT_DELTA_BIC, ACCEPT_IMPROVEMENT
-from .effects import EFFECT_PARAMETERS, SENSOR_DYNAMICS_NAMES, effect as registered, effect_starts
+from .effects import (EFFECT_PARAMETERS, EVEN_LAW_NAMES, EVEN_LAW_POWERS, SENSOR_DYNAMICS_NAMES, effect as registered,
+                      effect_starts)
 from .fit import BASE_FIT_TOLERANCE, FitResult, Objective, Split, _solve_linear_outputs, global_search
 from .kernels import step_classes
 from .model import Model, Structure, base_parameters, extension_parameters, sensor_dynamics, slope_factor
@@ -143,7 +144,18 @@ def _staged_pinning_starts(split, base, effect, model):
     Why: on a plain heating record the two coefficients lower the fitting block's SSE by 0.05 % and bend the
     extrapolation: the held-out RMSE went from 1.03 to 2.68 noise units (make_recording thermal_drift, seed 1,
     both channels) where the BIC had preferred the plain heating law by 15."""
-    held = {n: (replace(p, free=False) if n in PINNING_DRIFT_COLUMNS else p) for n, p in model.parameters.items()}
+    return _staged(split, base, effect, model, PINNING_DRIFT_COLUMNS)
+
+
+def _staged_starts(split, base, effect, model):
+    """The family's older member first, its ``held_first`` parameters at their initial values, then the whole
+    family from that fit, kept only if the fitting block asks for it (as :func:`_staged_pinning_starts`): a
+    family widened by a term is then never fitted worse than the member it widens."""
+    return _staged(split, base, effect, model, effect.held_first)
+
+
+def _staged(split, base, effect, model, held_names):
+    held = {n: (replace(p, free=False) if n in held_names else p) for n, p in model.parameters.items()}
     held_model = Model(model.recording, model.structure, held, model.max_field_step)
     first = min((split.fit(held_model, start, max_nfev=40) for start in effect_starts(held_model, effect.name,
                                                                                      base.values)),
@@ -188,11 +200,15 @@ def _quadratic_output_starts(split, base, effect, model):
               _quadratic_start(model, {**base_values, **paper}, split.fit_mask)]
     if base.magnetic_values:
         starts.append(_quadratic_start(model, {**base_values, **paper, **base.magnetic_values}, split.fit_mask))
-    width = max(abs(v["zeta_q"]) for v in starts)
-    zeta_q = model.parameters["zeta_q"]
-    widened = replace(zeta_q, lower=-100 * width - abs(zeta_q.upper), upper=100 * width + abs(zeta_q.upper),
-                      scale=max(width, zeta_q.scale))
-    return Model(recording, structure, {**model.parameters, "zeta_q": widened}, split.max_field_step), starts
+    widened = {}
+    for name in ("zeta_q",) + EVEN_LAW_NAMES:
+        if name not in model.parameters:
+            continue
+        width = max(abs(v.get(name, 0.0)) for v in starts)
+        parameter = model.parameters[name]
+        widened[name] = replace(parameter, lower=-100 * width - abs(parameter.upper),
+                                upper=100 * width + abs(parameter.upper), scale=max(width, parameter.scale))
+    return Model(recording, structure, {**model.parameters, **widened}, split.max_field_step), starts
 
 
 def _linear_sensor_starts(split, base, effect, model):
@@ -264,6 +280,7 @@ def _mains_starts(split, base, effect, model):
 
 #: How the hypothesize stage fits an effect (its ``strategy`` in the registry).
 STRATEGIES = {"local": _local_starts, "other_curve": _other_curve_starts, "staged_pinning": _staged_pinning_starts,
+              "staged": _staged_starts,
               "with_hysteresis": _with_hysteresis_starts, "quadratic_outputs": _quadratic_output_starts,
               "linear_sensor": _linear_sensor_starts, "linear_sensor_scan": _linear_sensor_scan_starts,
               "mains": _mains_starts, "sensor_dynamics_scan": _sensor_dynamics_scan_starts}
@@ -327,21 +344,40 @@ def _quadratic_start(model, base_values, fit_mask):
 
 
 def _quadratic_outputs(model, base_values, m, fit_mask):
-    """Linear least squares of the displacement on the responses to M, M^2 and 1 (the forcing
-    c1*M + c2*M^2 + c0 = zetahat*(M - M0) + zeta_q*(M - M0)^2), mapped to (zetahat, zeta_q, M0)."""
-    unit = dict(base_values, zetahat=1.0, zeta_q=0.0, M0=0.0)
-    responses = []
-    for signal in (m, m ** 2, np.ones_like(m)):
-        responses.append(model.displacement(unit, signal)[fit_mask])
-    design = np.column_stack(responses)
+    """Linear least squares of the displacement on the responses to M, M^2, the law's even terms
+    Ms*(M/Ms)^n where the model has them (:data:`.effects.EVEN_LAW_POWERS`), and 1 (the forcing
+    c1*M + c2*M^2 + sum(c_n*Ms*m^n) + c0 = zetahat*(M - M0) + zeta_q*(M - M0)^2 + Ms*sum(zeta_n*(m^n - m0^n))),
+    mapped to (zetahat, zeta_q, zeta_n, M0): M0 is the root of the forcing nearest the median M, where the law's
+    terms all vanish."""
+    even = [n for n in EVEN_LAW_NAMES if n in model.parameters and model.parameters[n].free]
+    Ms = float(base_values["Ms"])
+    unit = dict(base_values, zetahat=1.0, zeta_q=0.0, M0=0.0, **{n: 0.0 for n in EVEN_LAW_NAMES})
+    powers = EVEN_LAW_POWERS
+    signals = [m, m ** 2] + [Ms * (m / Ms) ** powers[n] for n in even] + [np.ones_like(m)]
+    design = np.column_stack([model.displacement(unit, signal)[fit_mask] for signal in signals])
     if not np.all(np.isfinite(design)):
         return dict(base_values)  # mechanics unstable at these values: nothing to solve
-    (c1, c2, c0), *_ = np.linalg.lstsq(design, model.recording.displacement[fit_mask], rcond=None)
+    # columns of very different sizes (M^6/Ms^5 against 1): scaled to unit norm for the solve
+    norms = np.linalg.norm(design, axis=0)
+    norms[norms == 0.0] = 1.0
+    scaled, *_ = np.linalg.lstsq(design / norms, model.recording.displacement[fit_mask], rcond=None)
+    coefficients = scaled / norms
+    c1, c2, c0 = coefficients[0], coefficients[1], coefficients[-1]
+    higher = dict(zip(even, coefficients[2:-1]))
+    # the forcing as a polynomial in u = M/Ms, highest power first: sum(c_n*Ms*u^n) + c2*Ms^2*u^2 + c1*Ms*u + c0
+    degree = max([2, *powers.values()])
+    polynomial = np.zeros(degree + 1)
+    for name, value in higher.items():
+        polynomial[degree - powers[name]] += value * Ms
+    polynomial[degree - 2] += c2 * Ms ** 2
+    polynomial[degree - 1], polynomial[degree] = c1 * Ms, c0
     center = float(np.median(m))
-    roots = np.roots([c2, c1, c0]) if c2 != 0 else np.array([-c0 / c1])
+    nonzero = np.flatnonzero(polynomial[:-1])
+    roots = Ms * np.roots(polynomial[nonzero[0]:]) if nonzero.size else np.array([center])
     real = roots[np.abs(roots.imag) < 1e-9 * (np.abs(roots) + 1)].real
     M0 = float(real[np.argmin(np.abs(real - center))]) if real.size else center
-    return dict(base_values, zeta_q=float(c2), zetahat=float(c1 + 2 * c2 * M0), M0=M0)
+    return dict(base_values, zeta_q=float(c2), zetahat=float(c1 + 2 * c2 * M0), M0=M0,
+                **{n: float(v) for n, v in higher.items()})
 
 
 def _linear_sensor_start(model, effect, start, fit_mask):

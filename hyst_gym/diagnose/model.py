@@ -31,18 +31,22 @@ the base model when those parameters vanish:
                                 sensor a second-order filter ``1/(1 + tau*s + tau2^2*s^2)``
                                 (natural frequency 1/(2*pi*tau2), damping ratio tau/(2*tau2));
                                 tau2 = 0 is the first-order lag
-``quadratic_magnetostriction``  ``zeta_q``: forcing ``zetahat*(M-M0) + zeta_q*(M-M0)^2``
-                                (the M^2 law of (12) about a bias M0 gives zeta_q = zetahat/(2*M0);
-                                a pure M^2 law has zetahat -> 0 with zeta_q finite)
+``quadratic_magnetostriction``  ``zeta_q``, ``zeta_4``: forcing ``zetahat*(M-M0) +
+                                zeta_q*(M-M0)^2 + Ms*zeta_4*(m^4 - m0^4)``, m = M/Ms (the M^2 law
+                                of (12) about a bias M0 gives zeta_q = zetahat/(2*M0); a pure M^2
+                                law has zetahat -> 0 with zeta_q finite; the even term: a law that
+                                saturates or rises faster than M^2)
 ``rod_dynamics``                ``f2`` (Hz), ``damping2`` (damping ratio) and ``g2``: a second
                                 longitudinal rod mode (10) in parallel with the lumped one; g2
                                 is its static gain relative to the first
-``delta_e``                     ``delta_e``, ``delta_e_linear``: the Delta-E effect, a stiffness
-                                that follows the magnetization, a quadratic in m = M/Ms:
-                                ``khat*(1 + delta_e*(m^2 - m0^2) + delta_e_linear*(m - m0))``
-                                (Terfenol-D stiffens toward saturation; Clark's Delta-E). The
-                                family holds Clark's M^2 law (delta_e_linear = 0) and a law in
-                                (M - Mb)^2 about another centre Mb (delta_e_linear = -2*delta_e*Mb/Ms)
+``delta_e``                     ``delta_e``, ``delta_e_linear``, ``delta_e_quartic``: the Delta-E
+                                effect, a stiffness that follows the magnetization, a quartic in
+                                m = M/Ms: ``khat*(1 + delta_e*(m^2 - m0^2) + delta_e_linear*(m - m0)
+                                + delta_e_quartic*(m^4 - m0^4))`` (Terfenol-D stiffens toward
+                                saturation; Clark's Delta-E). The family holds Clark's M^2 law
+                                (delta_e_linear = delta_e_quartic = 0), a law in (M - Mb)^2 about
+                                another centre Mb (delta_e_linear = -2*delta_e*Mb/Ms) and a dip
+                                narrower than a parabola (delta_e_quartic)
 ``anhysteretic_shape``          the other anhysteretic curve (Ising <-> Langevin), or a mixture:
                                 ``mix_weight`` w and ``mix_a_ratio`` r, the magnetization
                                 ``(1 - w)*M[other curve, a] + w*M[base curve, r*a]`` (two phases,
@@ -95,9 +99,9 @@ import numpy as np
 from ..physics.fem import FEMRod
 from ..physics.constants import PAPER_DAMPING, PAPER_STIFFNESS
 from ..physics.transducers import RodParams
-from .effects import (DRIFT_NAMES, EFFECTS, GAIN_DRIFT_NAMES, INPUT_DYNAMICS_NAMES, INPUT_MAP_NAMES,
-                      MAINS_MIN_CYCLES, MAINS_NAMES, PAPER_MS, SENSOR_MAP_NAMES, applicable_effects, effect,
-                      extension_parameters, mapped_field)
+from .effects import (DRIFT_NAMES, EFFECTS, EVEN_LAW_NAMES, EVEN_LAW_POWERS, GAIN_DRIFT_NAMES, INPUT_DYNAMICS_NAMES,
+                      INPUT_MAP_NAMES, MAINS_MIN_CYCLES, MAINS_NAMES, PAPER_MS, SENSOR_MAP_NAMES, applicable_effects,
+                      effect, extension_parameters, mapped_field)
 from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, PINNING_DRIFT_COLUMNS, first_order_system, lti_response,
                       heating_reference, lane_passes, member_passes, second_order_system, simulate_lanes,
                       simulate_members, step_classes, step_lti,
@@ -362,10 +366,13 @@ class Model:
             gain = values[GAIN_NAMES[transducer]]
             # quadratic_magnetostriction: a second gain on (M - M0)^2 (kappa = zeta_q/gain)
             forcing = deviation + (values.get("zeta_q", 0.0) / gain) * deviation ** 2 if gain else deviation
+            even = {n: values.get(n, 0.0) for n in EVEN_LAW_NAMES}
+            if any(even.values()) and gain:
+                forcing = forcing + even_law_forcing(magnetization, values["Ms"], M0, even) / gain
         if transducer == "fem":
             return _fem_tip_displacement(self._time, forcing, gain, values, self._classes)
-        delta_e, delta_e_linear = values.get("delta_e", 0.0), values.get("delta_e_linear", 0.0)
-        if (delta_e != 0.0 or delta_e_linear != 0.0) and transducer in ("lumped", "lumped_nonlinear"):
+        stiffness_terms = [values.get(n, 0.0) for n in ("delta_e", "delta_e_linear", "delta_e_quartic")]
+        if any(stiffness_terms) and transducer in ("lumped", "lumped_nonlinear"):
             relative_stiffness = relative_stiffness_change(magnetization, values)
             return varying_stiffness_response(self._time, gain * forcing, relative_stiffness,
                                               values["khat"], values["chat"], classes=self._classes)
@@ -385,11 +392,25 @@ class Model:
         return lti_response(self._time, forcing, A, B, C, start="steady", classes=self._classes)
 
 
+def even_law_forcing(magnetization, Ms, M0, coefficients):
+    """The magnetostriction law's even terms beyond M^2 (:data:`.effects.EVEN_LAW_POWERS`), in the gain's units
+    times A/m: ``Ms*sum(zeta_n*(m^n - m0^n))`` over ``coefficients`` {name: zeta_n} with m = M/Ms, zero at the
+    bias M0 as the law's other terms. Why even powers of M/Ms about M = 0, not of M - M0: the magnetostriction of a
+    demagnetized rod is even in M (lambda(-M) = lambda(M), lambda(0) = 0), and its saturation is reached at
+    |M| = Ms whatever the bias; the linear and (M - M0)^2 terms already hold a law about a bias."""
+    m, m0 = magnetization / Ms, M0 / Ms
+    return Ms * sum(value * (m ** EVEN_LAW_POWERS[name] - m0 ** EVEN_LAW_POWERS[name])
+                    for name, value in coefficients.items())
+
+
 def relative_stiffness_change(magnetization, values):
     """The Delta-E family's relative stiffness change khat(M)/khat - 1 (1) at ``magnetization`` (A/m):
-    ``delta_e*(m^2 - m0^2) + delta_e_linear*(m - m0)``, m = M/Ms, zero at the bias M0."""
+    ``delta_e*(m^2 - m0^2) + delta_e_linear*(m - m0) + delta_e_quartic*(m^4 - m0^4)``, m = M/Ms, zero at the
+    bias M0."""
     m, m0 = magnetization / values["Ms"], values["M0"] / values["Ms"]
-    return values.get("delta_e", 0.0) * (m ** 2 - m0 ** 2) + values.get("delta_e_linear", 0.0) * (m - m0)
+    change = values.get("delta_e", 0.0) * (m ** 2 - m0 ** 2) + values.get("delta_e_linear", 0.0) * (m - m0)
+    quartic = values.get("delta_e_quartic", 0.0)
+    return change + quartic * (m ** 4 - m0 ** 4) if quartic else change
 
 
 def gain_drift_factor(fraction, linear, settling, tau):

@@ -8,11 +8,12 @@ from pathlib import Path
 import numpy as np
 
 from ..physics.constants import ROOM_TEMPERATURE
-from .effects import (EFFECT_PARAMETERS, EFFECT_WORDS, INPUT_MAP_NAMES, SENSOR_MAP_NAMES, effect as registered,
-                      record_temperature_rise, temperature_rise_trace, thermal_change_words)
+from .effects import (EFFECT_PARAMETERS, EFFECT_WORDS, EVEN_LAW_NAMES, INPUT_MAP_NAMES, SENSOR_MAP_NAMES,
+                      effect as registered, record_temperature_rise, temperature_rise_trace, thermal_change_words)
 from ..physics.anhysteretic import anhysteretic_magnetization
 from .fit import FitResult
-from .model import FEM_ROD_NAMES, channel_range, mapped_field, relative_stiffness_change, slope_factor
+from .model import (FEM_ROD_NAMES, channel_range, even_law_forcing, mapped_field, relative_stiffness_change,
+                    slope_factor)
 
 # EFFECT_WORDS (each effect's sentence) and the thermal words are the registry's (:mod:`.effects`);
 # they stay importable here.
@@ -20,8 +21,9 @@ __all__ = ["EFFECT_WORDS", "UNITS", "explain", "physical_params", "record_temper
            "temperature_rise_trace", "thermal_change_words", "write_json", "write_plots"]
 UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "heating_exponent": "", "tau_th": "s", "beta_Ms": "1/K",
          "tau_m": "s", "tau_x": "s", "tau2_m": "s", "tau2_x": "s", "tau2_in": "s", "zeta_q": "m/s^2 per (A/m)^2",
-         "f2": "Hz", "damping2": "", "g2": "",
-         "delta_e": "", "delta_e_linear": "", "chi_r": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "", "alpha": "",
+         "zeta_4": "m/s^2 per A/m", "f2": "Hz", "damping2": "", "g2": "",
+         "delta_e": "", "delta_e_linear": "", "delta_e_quartic": "",
+         "chi_r": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "", "alpha": "",
          "Y": "Pa", "ML": "kg", "cD": "Pa s", "cL": "N s/m", "khat": "1/s^2", "chat": "1/s"}
 
 
@@ -103,6 +105,15 @@ def slot_shapes(fit) -> list:
                  "value / value at t = 0", curves)]
     if effect == "anhysteretic_shape":
         return [_anhysteretic_shape(fit)]
+    if effect == "quadratic_magnetostriction" and "zetahat" in values:
+        # the law as the fitted forcing (gain units x A/m) over M, against the M^2 law with the same M and M^2
+        # gains (the even terms 0): where they part, the even terms carry the law
+        m = np.linspace(-values["Ms"], values["Ms"], 201)
+        deviation = m - values["M0"]
+        quadratic = values["zetahat"] * deviation + values.get("zeta_q", 0.0) * deviation ** 2
+        even = even_law_forcing(m, values["Ms"], values["M0"], {n: values.get(n, 0.0) for n in EVEN_LAW_NAMES})
+        return [("magnetostriction", "Magnetostriction law: fitted forcing against M", "M (A/m)",
+                 "forcing (gain units x A/m)", [("fitted", m, quadratic + even), ("M^2 law alone", m, quadratic)])]
     return []
 
 
