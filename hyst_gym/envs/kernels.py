@@ -82,10 +82,9 @@ StepBuffers = namedtuple("StepBuffers", [
 #: All fixed data of one env step: action tolerance, then PlantParams, ScoreParams, ObservationLayout.
 EnvParams = namedtuple("EnvParams", ["tolerance", "plant", "score", "layout"])
 #: The Gaussian likelihood of a grid posterior (:class:`~hyst_gym.envs.posterior.GridPosterior`): the measured
-#: columns it reads, their normalization scales, the noise variance sigma**2 (normalized units), the node
-#: simulators per sub-env (one row each of the node plants' :class:`PlantState`) and, of those, the consecutive
-#: ones that share a start temperature (the k nodes of a T0 node: they share their thermal state).
-LikelihoodParams = namedtuple("LikelihoodParams", ["channels", "scales", "variance", "per", "group"])
+#: columns it reads, their normalization scales, the noise variance sigma**2 (normalized units) and the node
+#: simulators per sub-env (one row each of the node plants' :class:`PlantState`).
+LikelihoodParams = namedtuple("LikelihoodParams", ["channels", "scales", "variance", "per"])
 
 
 # plant_step, score_step, clip_actions, finish_step and the estimator's estimator_step,
@@ -114,87 +113,60 @@ def limit_fields(command, plant, params):
     """The first part of :func:`plant_step` (named ``plant`` and ``params``): the field H1 within the field
     and slew limits into ``plant.field``, M kept as the step's start; returns H0 (a new array)."""
     field, magnetization, magnetization_prev = plant.field, plant.magnetization, plant.magnetization_prev
+    field_limit, max_change = params.field_limit, params.max_change
     field_from = field.copy()
     for i in range(field.shape[0]):
-        field[i] = limited_field(command[i], field_from[i], params)
+        target = min(max(command[i], -field_limit), field_limit)
+        field[i] = min(max(target, field_from[i] - max_change), field_from[i] + max_change)
         magnetization_prev[i] = magnetization[i]
     return field_from
-
-
-@njit(cache=True, inline="always")
-def limited_field(command, field_from, params):
-    """The field H1 (A/m) that ``command`` (A/m) gives from H0 ``field_from`` within the field limit and the slew
-    limit of ``params`` (a :class:`PlantParams`)."""
-    field_limit, max_change = params.field_limit, params.max_change
-    target = min(max(command, -field_limit), field_limit)
-    return min(max(target, field_from - max_change), field_from + max_change)
 
 
 @njit(cache=True, inline="always")
 def finish_plants(field_from, active, plant, params):
     """The part of :func:`plant_step` after model (6) has moved M (named ``plant`` and ``params``): the
     transducer, the thermal model, a(T) and the (noisy) measurement."""
-    field, temperature, steps, measured = plant.field, plant.temperature, plant.steps, plant.measured
+    field, magnetization, magnetization_prev, state = plant.field, plant.magnetization, plant.magnetization_prev, \
+        plant.state
+    temperature, steps, measured, measured_temperature = plant.temperature, plant.steps, plant.measured, \
+        plant.measured_temperature
     n = field.shape[0]
-    transducer_rows(0, n, plant, params)
+    s = state.shape[1]
+    drive_gain = params.drive_gain
     for i in range(n):
+        m0 = magnetization_prev[i]
+        m1 = magnetization[i]
+        if params.quadratic:
+            u0 = drive_gain * m0 * m0
+            u1 = drive_gain * m1 * m1
+        else:
+            u0 = drive_gain * m0
+            u1 = drive_gain * m1
+        lti_step(params.phi, params.gamma0, params.gamma1, state[i], u0, u1, plant.state_next[i])
+        for r in range(s):
+            state[i, r] = plant.state_next[i, r]
         if params.drifting:
-            heat_row(i, joule_power(field_from[i], field[i], params), plant, params)
+            drift_rate = plant.drift_rate[i]
+            power = params.power_per_h2 * mean_square_linear_kernel(field_from[i], field[i])
+            amb0 = plant.ambient0[i] + drift_rate * (steps[i] * params.dt)
+            amb1 = amb0 + drift_rate * params.dt
+            temperature[i] = temperature_step_kernel(temperature[i], amb0, amb1,
+                                                     params.thermal_resistance * power - drift_rate * params.tau,
+                                                     params.decay)
         steps[i] += 1
         plant.a_true[i] = a_law_kernel(params.a_reference, temperature[i], params.t_reference)
-        plant.measured_temperature[i] = temperature[i]
+        measured[i, 0] = state[i, params.output_index]
+        if params.velocity_index >= 0:
+            measured[i, 1] = state[i, params.velocity_index]
+        measured_temperature[i] = temperature[i]
         if params.noisy and active[i]:
             p = plant.noise_pos[i]
             noise, noise_sigma = plant.noise, params.noise_sigma
             for r in range(measured.shape[1]):
                 measured[i, r] += noise_sigma[r] * noise[i, p, r]
             if params.temperature_sensor:
-                plant.measured_temperature[i] += noise_sigma[measured.shape[1]] * noise[i, p, measured.shape[1]]
+                measured_temperature[i] += noise_sigma[measured.shape[1]] * noise[i, p, measured.shape[1]]
             plant.noise_pos[i] = p + 1
-
-
-@njit(cache=True, inline="always")
-def transducer_rows(lo, hi, plant, params):
-    """The transducers of plants ``lo..hi-1`` over the step (driven by M at its start and end,
-    ``plant.magnetization_prev`` and ``plant.magnetization``) and their noise-free measured outputs. One loop over
-    the plants (a helper per plant that takes row views of the state costs about ten times as much here)."""
-    state, state_next, measured = plant.state, plant.state_next, plant.measured
-    magnetization_prev, magnetization = plant.magnetization_prev, plant.magnetization
-    for i in range(lo, hi):
-        lti_step(params.phi, params.gamma0, params.gamma1, state[i], drive_input(magnetization_prev[i], params),
-                 drive_input(magnetization[i], params), state_next[i])
-        for r in range(state.shape[1]):
-            state[i, r] = state_next[i, r]
-        measured[i, 0] = state[i, params.output_index]
-        if params.velocity_index >= 0:
-            measured[i, 1] = state[i, params.velocity_index]
-
-
-@njit(cache=True, inline="always")
-def drive_input(magnetization, params):
-    """The transducer's input for a magnetization M (A/m): ``drive_gain*M**2`` (quadratic) or ``drive_gain*M``."""
-    if params.quadratic:
-        return params.drive_gain * magnetization * magnetization
-    return params.drive_gain * magnetization
-
-
-@njit(cache=True, inline="always")
-def joule_power(field_from, field_to, params):
-    """The coil's mean Joule power (W) over a step on which the field moves linearly from ``field_from`` to
-    ``field_to`` (A/m)."""
-    return params.power_per_h2 * mean_square_linear_kernel(field_from, field_to)
-
-
-@njit(cache=True, inline="always")
-def heat_row(i, power, plant, params):
-    """Plant ``i``'s coil temperature over the step (a drifting ambient; ``power`` held, W), before its step
-    counter moves."""
-    drift_rate = plant.drift_rate[i]
-    amb0 = plant.ambient0[i] + drift_rate * (plant.steps[i] * params.dt)
-    amb1 = amb0 + drift_rate * params.dt
-    plant.temperature[i] = temperature_step_kernel(plant.temperature[i], amb0, amb1,
-                                                   params.thermal_resistance * power - drift_rate * params.tau,
-                                                   params.decay)
 
 
 @njit(cache=True, inline="always")
@@ -384,7 +356,8 @@ def excitation_step(actions, active, plant, view, buffers, params, estimator):
 
 
 @background_kernel(nogil=True)
-def posterior_step(updating, measured, log_post, field, stepping, plant, plant_params, likelihood):
+def posterior_step(updating, measured, log_post, field, stepping, command, active, plant, plant_params,
+                   likelihood):
     """One step of a grid posterior's node simulators (the plants only: no estimator bank, score or
     observation), with its log-likelihood update first. It runs without the GIL: the grid posterior may step
     two disjoint blocks of sub-envs (views of its arrays) in two threads at once.
@@ -392,17 +365,10 @@ def posterior_step(updating, measured, log_post, field, stepping, plant, plant_p
     ``updating``: (n,) bool, the sub-envs whose ``log_post`` rows ((n, per), node-major as the node plants) gain the
     Gaussian log-likelihood ``-0.5*sum(residual**2)/sigma**2`` of their normalized outputs ``measured``
     ((n, channels)) against the node plants' noise-free outputs (before this step). Then, if ``stepping``,
-    every node plant of sub-env ``i`` takes the field command ``clip(field[i], -1, 1)*field_limit``: the numbers of
-    :func:`plant_step` on each node plant bit for bit, with the work that is the same for several node plants
-    done once. A sub-env's node plants share their field path (the same commands since their common restart:
-    one field, one Joule power): model (6) moves them as one bank (:func:`node_fields_step`;
-    :func:`~hyst_gym.physics.hysteresis.advance_shared`, the arithmetic of ``advance_each``, vectorized over the
-    node plants). The consecutive runs of ``likelihood.group`` of them share a start temperature, ambient and
-    drift, and so their temperature and a: the thermal model and a(T) run once per run (:func:`node_plants_finish`;
-    two passes over the sub-envs, a little faster than one pass of both). ``plant`` (:class:`PlantState`),
+    every node plant of sub-env ``i`` takes the field command ``clip(field[i], -1, 1)*field_limit``
+    (:func:`plant_step`, ``command`` its scratch, ``active`` all True). ``plant`` (:class:`PlantState`),
     ``plant_params`` (:class:`PlantParams`) and ``likelihood`` (:class:`LikelihoodParams`) come as plain
-    tuples. Returns 1 (nothing changed) if a field is NaN, else 0. Row ``i`` of every output depends on row ``i``
-    of the inputs alone."""
+    tuples. Returns 1 (nothing changed) if a field is NaN, else 0."""
     like, nodes = LikelihoodParams(*likelihood), PlantState(*plant)
     if stepping:
         for i in range(field.shape[0]):
@@ -410,62 +376,32 @@ def posterior_step(updating, measured, log_post, field, stepping, plant, plant_p
                 return 1
     per, channels, scales, variance = like.per, like.channels, like.scales, like.variance
     predicted = nodes.measured
-    params = PlantParams(*plant_params)
     for i in range(log_post.shape[0]):
-        if updating[i]:
+        if not updating[i]:
+            continue
+        for j in range(per):
+            row = i * per + j
+            total = 0.0
+            for c in range(channels.shape[0]):
+                residual = measured[i, c] - predicted[row, channels[c]] / scales[c]
+                total += residual * residual
+            log_post[i, j] -= 0.5 * total / variance
+    if stepping:
+        params = PlantParams(*plant_params)
+        for i in range(field.shape[0]):
+            value = min(max(field[i], -1.0), 1.0) * params.field_limit
             for j in range(per):
-                row = i * per + j
-                total = 0.0
-                for c in range(channels.shape[0]):
-                    residual = measured[i, c] - predicted[row, channels[c]] / scales[c]
-                    total += residual * residual
-                log_post[i, j] -= 0.5 * total / variance
-    if stepping:  # node_plants_step of each sub-env, in two passes
-        field_from = np.empty(field.shape[0])
+                command[i * per + j] = value
+        field_from = limit_fields(command, nodes, params)
+        # a sub-env's node plants share their field path (same commands since their common restart): model (6)
+        # moves them as one bank (advance_shared, the arithmetic of advance_each, vectorized over the nodes)
         for i in range(field.shape[0]):
-            field_from[i] = node_fields_step(i * per, (i + 1) * per,
-                                             min(max(field[i], -1.0), 1.0) * params.field_limit, nodes, params)
-        for i in range(field.shape[0]):
-            node_plants_finish(i * per, (i + 1) * per, like.group, field_from[i], nodes, params)
+            lo, hi = i * per, (i + 1) * per
+            advance_shared(nodes.magnetization[lo:hi], field_from[lo], nodes.field[lo], nodes.a_true[lo:hi],
+                           params.k[lo:hi], params.alpha[lo:hi], params.Ms[lo:hi], params.c[lo:hi], params.kind,
+                           params.max_field_step)
+        finish_plants(field_from, active, nodes, params)
     return 0
-
-
-@njit(cache=True, inline="always")
-def node_fields_step(lo, hi, command, plant, params):
-    """The first part of the node plants' step in :func:`posterior_step` (model (6)): the field of the plants
-    ``lo..hi-1`` (named ``plant`` and ``params``; one sub-env's) within its limits, from the field command
-    ``command`` (A/m), and their M moved to it as one bank; returns the field at the step's start (A/m)."""
-    field_from = plant.field[lo]
-    field_to = limited_field(command, field_from, params)
-    magnetization, magnetization_prev = plant.magnetization, plant.magnetization_prev
-    for j in range(lo, hi):
-        plant.field[j] = field_to
-        magnetization_prev[j] = magnetization[j]
-    advance_shared(magnetization[lo:hi], field_from, field_to, plant.a_true[lo:hi], params.k[lo:hi],
-                   params.alpha[lo:hi], params.Ms[lo:hi], params.c[lo:hi], params.kind, params.max_field_step)
-    return field_from
-
-
-@njit(cache=True, inline="always")
-def node_plants_finish(lo, hi, group, field_from, plant, params):
-    """The second part of the node plants' step in :func:`posterior_step`: the transducers and measured outputs
-    of the plants ``lo..hi-1`` and, once per run of ``group``, the thermal model, the step counter and a(T),
-    copied to the run's other plants; ``field_from``: the field at the step's start (A/m)."""
-    transducer_rows(lo, hi, plant, params)
-    power = joule_power(field_from, plant.field[lo], params)
-    temperature, steps, a_true, measured_temperature = plant.temperature, plant.steps, plant.a_true, \
-        plant.measured_temperature
-    for first in range(lo, hi, group):
-        if params.drifting:
-            heat_row(first, power, plant, params)
-        steps[first] += 1
-        a_true[first] = a_law_kernel(params.a_reference, temperature[first], params.t_reference)
-        measured_temperature[first] = temperature[first]
-        for j in range(first + 1, first + group):
-            temperature[j] = temperature[first]
-            steps[j] = steps[first]
-            a_true[j] = a_true[first]
-            measured_temperature[j] = temperature[first]
 
 
 @background_kernel(nogil=True)
@@ -709,12 +645,10 @@ def identification_step(actions, active, plant, view, buffers, params, bank, ban
     return 0
 
 
-__all__ = ["EnvParams", "EstimateView", "LikelihoodParams", "ObservationLayout", "PlantParams", "PlantState",
-           "ScoreParams", "StepBuffers", "clip_actions", "drive_input", "excitation_step", "fill_info",
-           "fill_observation", "finish_plants", "finish_step", "heat_row", "identification_step", "joule_power",
-           "limit_fields", "limited_field", "marginal_sums", "marginal_terms", "node_fields_step",
-           "node_plants_finish", "pairwise_sum", "plant_step", "posterior_moments", "posterior_step",
-           "posterior_vertex", "score_step", "transducer_rows", "weight_terms"]
+__all__ = ["EnvParams", "EstimateView", "ObservationLayout", "PlantParams", "PlantState", "ScoreParams", "StepBuffers",
+           "LikelihoodParams", "clip_actions", "excitation_step", "fill_info", "fill_observation", "finish_step",
+           "finish_plants", "identification_step", "limit_fields", "marginal_sums", "marginal_terms", "pairwise_sum",
+           "plant_step", "posterior_moments", "posterior_step", "posterior_vertex", "score_step", "weight_terms"]
 
 
 #: printed once per process, on stderr, before the first environment compiles its kernels (HYST_GYM_COMPILE=foreground)

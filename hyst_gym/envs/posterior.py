@@ -21,12 +21,11 @@ a over the T0 nodes (A/m).
 
 Speed (same numbers bit for bit, ``tests/envs/test_posterior_speed.py``). Nearly all of a calibration
 env's step is model (6) in the node plants: n*nodes*k_nodes of them (65,536 at n = 1024 with 64 nodes, 221,184
-with the k task's 24 x 9). The work that is the same for several node plants is done once (the field and the
-Joule power per sub-env, the temperature and a per T0 node, shared by its k nodes). A restart copies a start
-state stored once (a node's start draws nothing); from :data:`SPLIT_MIN_NODES` node plants the step runs in two
-blocks of sub-envs in two threads (its kernels release the GIL; a row's numbers depend on its row alone); the
-marginal, weights, mean, spread and estimate are compiled kernels around numpy's exp and log (numpy's order of
-summation kept, and exp left out where it underflows to 0, numpy's slow path).
+with the k task's 24 x 9). A restart copies a start state stored once (a node's start draws nothing); from
+:data:`SPLIT_MIN_NODES` node plants the step runs in two blocks of sub-envs in two threads (its kernels release
+the GIL; a row's numbers depend on its row alone); the marginal, weights, mean, spread and estimate are compiled
+kernels around numpy's exp and log (numpy's order of summation kept, and exp left out where it underflows to 0,
+numpy's slow path).
 """
 
 from __future__ import annotations
@@ -126,10 +125,10 @@ class GridPosterior:
         channels = np.array(self.channels, dtype=np.int64)
         self._likelihood = LikelihoodParams(channels=channels, scales=self.sim.scales[channels],
                                             variance=float(config.output_noise) ** 2,
-                                            per=per, group=self.k_nodes)
-        if self.sim._plant_params.noisy:  # the compiled step moves noise-free node plants only
-            raise ValueError("GridPosterior: the node simulators must be noise-free")
-        self._kernel_args = as_kernel_tuples(self.sim._plant, self.sim._plant_params, self._likelihood)
+                                            per=per)
+        self._node_command = np.zeros(self.n * per)  # the kernel's scratch (field commands)
+        self._kernel_args = (self._node_command, np.ones(self.n * per, dtype=bool),
+                             *as_kernel_tuples(self.sim._plant, self.sim._plant_params, self._likelihood))
         self._blocks = self._split(per)
         self._pool, self._pool_pid, self._pool_lock = None, None, threading.Lock()
         self._no_rows = np.zeros(0, dtype=np.int64)
@@ -187,7 +186,8 @@ class GridPosterior:
             nodes = slice(lo * per, hi * per)
             block_plant = plant._replace(**{name: getattr(plant, name)[nodes] for name in plant._fields})
             block_params = params._replace(**{name: getattr(params, name)[nodes] for name in PER_NODE_PARAMS})
-            blocks.append((slice(lo, hi), as_kernel_tuples(block_plant, block_params, self._likelihood),
+            blocks.append((slice(lo, hi), (self._node_command[nodes], self._kernel_args[1][nodes],
+                                           *as_kernel_tuples(block_plant, block_params, self._likelihood)),
                            self._scratch_for(hi - lo)))
         return blocks
 

@@ -155,10 +155,9 @@ def test_the_step_in_two_threads_is_the_step_in_one_call(task, k_prior, monkeypa
                                            ("hyst_gym/DisplacementOnly-v0", None),
                                            ("hyst_gym/HotCalibrateUnknownK-v0", K_PRIOR)])
 def test_the_node_plants_step_as_a_plain_simulator_per_node_bit_for_bit(task, k_prior, monkeypatch):
-    # posterior_step does once what is the same for several node plants (the field and the Joule power per
-    # sub-env, the temperature and a per start temperature): every node-plant array must stay what the simulator's
-    # own step (plant_step, one plant at a time) makes of each node, under moving, held and saturated fields,
-    # across restarts, in two threads
+    # posterior_step moves a sub-env's node plants as one bank under their shared field: every node-plant array
+    # must stay what the simulator's own step (plant_step, one plant at a time) makes of each node, under moving,
+    # held and saturated fields, across a restart, in two threads
     monkeypatch.setattr(posterior_module, "SPLIT_MIN_NODES", 1)
     monkeypatch.setattr(posterior_module, "step_threads", lambda: 2)
     n = 3
