@@ -3,12 +3,13 @@ recording on a 2-core machine, :mod:`experiments.targets`).
 
 The concealed study (:mod:`experiments.diagnose_concealed`) times every recording, but with its
 worker processes sharing the cores, so its times mix the tool's cost with the load. This script
-takes the ``--slowest`` recordings of each generator in the study's raw rows, regenerates each from its generator
+takes, per generator and channel set, the ``--slowest`` effects of largest median study time (every seed of
+each; :func:`slowest_rows`) in the study's raw rows, regenerates each recording from its generator
 and seed, and diagnoses it again in this process alone, with the 1-min load average before and
 after. Results go to ``experiments/results/diagnose/speed_<samples>.{json,md}``. With ``--samples 20000`` the
 own generator's recordings are regenerated at the issue's record length (same effect and seed).
 
-    .venv/bin/python -m experiments.diagnose_speed --slowest 3 --samples 20000 [--workers N] [--page docs/speed.md]
+    .venv/bin/python -m experiments.diagnose_speed --slowest 1 --samples 20000 [--workers N] [--page docs/speed.md]
 
 ``--workers`` is the tool's thread count (default: the tool's default, the cores up to 4); with
 ``--page`` the table also goes into the page's ``diagnose-speed`` section.
@@ -26,19 +27,29 @@ import os
 import time
 from pathlib import Path
 
+import numpy as np
+
 from experiments.diagnose_concealed import RESULTS, RUNS, load_rows, make
 from hyst_gym.diagnose import diagnose
 from hyst_gym.diagnose.pipeline import DEFAULT_WORKERS
 
 
 def slowest_rows(rows, count):
-    """The ``count`` slowest study rows of each generator (slowest first within a generator). Per generator,
-    because ``--samples`` regenerates only the own generator's recordings at another length: ranked
-    together by their study time, the own recordings (short in the study, long when timed) were left out."""
+    """Per generator and channel set, every study row (all its seeds, in seed order) of the ``count`` effects whose
+    median study time is largest. Why per generator: ``--samples`` regenerates only the own generator's recordings
+    at another length, so ranked together by their study time the own recordings (short in the study, long when
+    timed) were left out. Why per channel set and effect, with every seed: a row's study time carries the load of
+    the study's other workers, so the slowest single rows of a generator changed from one study to the next and
+    left out seeds of its slowest case; an effect's median over its seeds is steadier, and its seeds differ by
+    the recording alone."""
     chosen = []
-    for generator in dict.fromkeys(r.get("generator") for r in rows):
-        of_generator = [r for r in rows if r.get("generator") == generator]
-        chosen += sorted(of_generator, key=lambda r: -float(r["seconds"]))[:count]
+    groups = {}
+    for r in rows:
+        groups.setdefault((r.get("generator"), r.get("channels")), {}).setdefault(r.get("effect"), []).append(r)
+    for effects in groups.values():
+        ranked = sorted(effects.items(), key=lambda item: -float(np.median([float(r["seconds"]) for r in item[1]])))
+        for _, of_effect in ranked[:count]:
+            chosen += sorted(of_effect, key=lambda r: int(r["seed"]))
     return chosen
 
 
@@ -80,8 +91,9 @@ def markdown(results, cores=None):
     slowest = max(results, key=lambda r: r["seconds_alone"])
     met = "met" if target.met(slowest["seconds_alone"]) else "not met"
     lines = [f"Written by `python -m experiments.diagnose_speed --samples {results[0]['samples']}` "
-             f"({cores or os.cpu_count()} cores; each recording diagnosed alone, in one process, with the tool's "
-             f"threads). Target: at most {target.bound:g} s per 20,000-sample recording, **{met}** "
+             f"({cores or os.cpu_count()} cores; per generator and channel set, every seed of the effect with the "
+             "largest median time in the concealed study; each recording diagnosed alone, in one process, with the "
+             f"tool's threads). Target: at most {target.bound:g} s per 20,000-sample recording, **{met}** "
              f"(largest time alone {slowest['seconds_alone']:.1f} s)." + _cpu_sentence(results), "",
              "| generator / channels | effect | seed | samples | threads | s alone | CPU s | 1-min load before / after "
              "| s in the study (load) | verdict (study) |", "|---|---|---|---|---|---|---|---|---|---|"]
@@ -100,8 +112,9 @@ def markdown(results, cores=None):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--slowest", type=int, default=3,
-                        help="how many of the study's slowest recordings per generator (default 3)")
+    parser.add_argument("--slowest", type=int, default=1,
+                        help="how many effects per generator and channel set, those of largest median study time, "
+                        "each at every seed of the study (default 1)")
     parser.add_argument("--samples", type=int, default=4000,
                         help="samples per own-generator recording (default 4000, as in the study; 20000 times "
                         "the study's slowest own-generator cases at the issue's record length)")

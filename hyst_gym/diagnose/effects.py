@@ -289,7 +289,8 @@ def _small_loop_parameters(recording, structure, base_values):
 #: the lumped mode's stiffness is held near its nominal value by the prior, so it cannot move down to it.
 SECOND_MODE_BELOW = 0.1
 #: Starts of the second mode, in units of the lumped mode's frequency: one below it (a mount's mode) and the
-#: three above it that a rod's higher modes need (:func:`_rod_starts`).
+#: three above it that a rod's higher modes need (:func:`_rod_starts`); the one below is fitted where the base
+#: residual asks for a mode there (:func:`.hypothesize._second_mode_starts`).
 SECOND_MODE_START_BELOW = 0.5
 SECOND_MODE_START_ABOVE = 1.8
 
@@ -631,7 +632,7 @@ _REGISTERED = (
         words="rod dynamics: a second longitudinal rod mode (10) that the lumped model lacks",
         parameter_names=("f2", "damping2", "g2"), parameters=_rod_parameters, identified_by="f2",
         applies=_lumped_mechanics_applies, rate_dependent=True, rescue=("f2",), starts=_rod_starts,
-        mechanical=True, search_ranges=("g2", "damping2"),
+        strategy="second_mode", mechanical=True, search_ranges=("g2", "damping2"),
         confusable={"sensor_lag": {"displacement": _BROADBAND + ", or " + _RECORD_M, "both": _BROADBAND},
                     "delta_e": {"both": _BROADBAND + " at two bias fields"}}),
     Effect(

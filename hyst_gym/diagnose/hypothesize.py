@@ -14,8 +14,8 @@ from dataclasses import replace
 import numpy as np
 
 from .decide import ACCEPT_DELTA_BIC, ACCEPT_IMPROVEMENT
-from .effects import (EFFECT_PARAMETERS, EVEN_LAW_NAMES, EVEN_LAW_POWERS, SENSOR_DYNAMICS_NAMES, effect as registered,
-                      effect_starts)
+from .effects import (EFFECT_PARAMETERS, EVEN_LAW_NAMES, EVEN_LAW_POWERS, SECOND_MODE_BELOW, SENSOR_DYNAMICS_NAMES,
+                      effect as registered, effect_starts)
 from .fit import BASE_FIT_TOLERANCE, FitResult, Objective, Split, _solve_linear_outputs, global_search
 from .kernels import step_classes
 from .model import Model, Structure, base_parameters, extension_parameters, sensor_dynamics, slope_factor
@@ -166,6 +166,60 @@ def _staged(split, base, effect, model, held_names):
     return held_model, [first.values]
 
 
+def _second_mode_starts(split, base, effect, model):
+    """The effect's starts of a second mode; the one below the lumped mode only where a linear probe of the base
+    fit's residual asks for a mode there (:func:`second_mode_probe`): the share of the fitting block's residual
+    that a mode below the lumped one explains (its best frequency on a grid from the range's bottom up to the
+    lumped mode) is at least :data:`SECOND_MODE_BELOW_SHARE` of what one above it explains. Why: a mode below
+    is a compliant mount's, and its start (a fit of its own) was the costliest of the effect's."""
+    starts = effect_starts(model, effect.name, base.values)
+    f1 = model.parameters["f2"].lower / SECOND_MODE_BELOW
+    below = [start for start in starts if start["f2"] < f1]
+    if not below or len(below) == len(starts):
+        return model, starts
+    below_drop, above_drop = second_mode_probe(split, model, base.values, f1)
+    if below_drop >= SECOND_MODE_BELOW_SHARE * above_drop:
+        return model, starts
+    return model, [start for start in starts if start["f2"] >= f1]
+
+
+#: :func:`_second_mode_starts`: the share of the best mode above's probe that the best mode below must reach for
+#: its start to be fitted.
+SECOND_MODE_BELOW_SHARE = 0.5
+#: :func:`second_mode_probe`'s grid: frequencies per factor of 2 (a mode at damping 0.05 spans about 10 % of its
+#: frequency at half power; the probe reads the broad response, the fit finds the peak).
+SECOND_MODE_PROBE_PER_OCTAVE = 6
+
+
+def second_mode_probe(split: Split, model: Model, values: dict, f1: float) -> tuple[float, float]:
+    """(below, above): the largest drop of the fitting block's SSE (noise units squared) that a second mode
+    explains with its best gain g2 alone (linear least squares; the displacement is linear in g2; damping2 at
+    its initial value, the rest at ``values``), over a geometric grid of its frequency below the lumped mode
+    ``f1`` (from ``model``'s f2 range's bottom) and above it (to the range's top). One simulation of the
+    magnetization; each grid point is a linear filter of its forcing."""
+    fitting = model.up_to(split.cut)
+    objective = Objective(model, split.noise, split.fit_mask)
+    magnetization = fitting.magnetization([values])[:, 0]
+    base = dict(values, g2=0.0)
+    residual = objective.residual_of(fitting.predict(base, magnetization))
+    lower, upper = model.parameters["f2"].lower, model.parameters["f2"].upper
+    probe_gain = 0.01
+
+    def drop(frequency):
+        probe = dict(base, f2=float(frequency), g2=probe_gain, damping2=model.parameters["damping2"].value)
+        column = (objective.residual_of(fitting.predict(probe, magnetization)) - residual) / probe_gain
+        norm = float(column @ column)
+        return float(column @ residual) ** 2 / norm if norm > 0 and np.isfinite(norm) else 0.0
+
+    def grid(start, stop):
+        count = max(2, int(np.ceil(SECOND_MODE_PROBE_PER_OCTAVE * np.log2(stop / start))) + 1)
+        return np.geomspace(start, stop, count)
+
+    below = max(drop(f) for f in grid(lower, 0.9 * f1))
+    above = max(drop(f) for f in grid(1.1 * f1, upper))
+    return below, above
+
+
 def _other_curve_starts(split, base, effect, model):
     """The other anhysteretic curve: from the same initial slope Ms*slope/a, and a fresh search."""
     start = dict(base.values)
@@ -279,7 +333,8 @@ def _mains_starts(split, base, effect, model):
 
 
 #: How the hypothesize stage fits an effect (its ``strategy`` in the registry).
-STRATEGIES = {"local": _local_starts, "other_curve": _other_curve_starts, "staged_pinning": _staged_pinning_starts,
+STRATEGIES = {"local": _local_starts, "second_mode": _second_mode_starts, "other_curve": _other_curve_starts,
+              "staged_pinning": _staged_pinning_starts,
               "staged": _staged_starts,
               "with_hysteresis": _with_hysteresis_starts, "quadratic_outputs": _quadratic_output_starts,
               "linear_sensor": _linear_sensor_starts, "linear_sensor_scan": _linear_sensor_scan_starts,

@@ -146,3 +146,53 @@ def test_the_stiffness_family_is_fitted_no_worse_than_its_quadratic_member():
     assert fitted.sse <= alone.sse * (1 + 1e-3)
     if not fitted.model.parameters["delta_e_quartic"].free:
         assert fitted.values["delta_e_quartic"] == 0.0
+
+
+def _with_second_mode(recording, ratio):
+    """The recording's displacement replaced by the lumped model's with a second mode at ``ratio`` times the
+    lumped mode (g2 = 0.3), and the rod model on it at the base values (g2 = 0)."""
+    from hyst_gym.diagnose.recording import Recording
+
+    model = _model(recording, "rod_dynamics")
+    values = model.values()
+    f1 = np.sqrt(values["khat"]) / (2 * np.pi)
+    truth = dict(values, f2=ratio * f1, damping2=0.05, g2=0.3)
+    displacement = model.predict(truth)["displacement"]
+    noise = 1e-3 * np.ptp(displacement) * np.random.default_rng(0).standard_normal(displacement.size)
+    made = Recording(time=recording.time, field=recording.field, magnetization=recording.magnetization,
+                     displacement=displacement + noise)
+    model = _model(made, "rod_dynamics")
+    # the lumped gain refitted (as the base fit does; the displacement is linear in it): the residual left is
+    # what the lumped mode cannot follow, not a static gain
+    lumped = model.predict(values)["displacement"]
+    values["zetahat"] *= float(lumped @ made.displacement) / float(lumped @ lumped)
+    return model, values, f1
+
+
+@pytest.fixture(scope="module")
+def rod_drive():
+    """A record whose drive reaches the lumped mode's band (the own generator's rod_dynamics drive)."""
+    return make_recording_with_truth("rod_dynamics", 4, output="both", n_samples=1500)[0]
+
+
+@pytest.mark.parametrize("ratio, below_asked", [(0.3, True), (0.5, True), (2.0, False), (3.0, False)])
+def test_the_start_below_the_lumped_mode_is_fitted_where_the_residual_asks_for_a_mode_there(rod_drive, ratio,
+                                                                                          below_asked):
+    """The linear probe of the base residual: a record whose second mode lies below the lumped one (a mount's)
+    is explained better by a mode below than by one above, and the start below is kept; a record whose second
+    mode lies above (a rod's higher mode) the reverse, and only the starts above are fitted."""
+    from types import SimpleNamespace
+
+    from hyst_gym.diagnose.effects import effect
+    from hyst_gym.diagnose.fit import Split
+    from hyst_gym.diagnose.hypothesize import STRATEGIES, second_mode_probe
+
+    model, values, f1 = _with_second_mode(rod_drive, ratio)
+    split = Split.of(model.recording, 0.3)
+    below, above = second_mode_probe(split, model, values, f1)
+    assert (below > above) == below_asked
+    _, starts = STRATEGIES[effect("rod_dynamics").strategy](split, SimpleNamespace(values=values),
+                                                            effect("rod_dynamics"), model)
+    every = effect_starts(model, "rod_dynamics", values)
+    assert any(s["f2"] < f1 for s in starts) == below_asked
+    assert [s for s in every if s["f2"] > f1] == [s for s in starts if s["f2"] > f1]

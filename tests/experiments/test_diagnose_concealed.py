@@ -45,16 +45,25 @@ def test_every_vocabulary_effect_is_concealed_by_both_generators():
 
 
 def test_speed_script_times_the_slowest_rows_alone():
-    """The speed check picks the study's slowest rows of each generator, and its summary names the slowest time alone
-    with its record length and load."""
+    """The speed check picks, per generator and channel set, every seed of the effect of largest median study
+    time (not the single slowest rows, whose times carry the study's load), and its summary names the slowest time
+    alone with its record length and load."""
     from experiments.diagnose_speed import markdown, slowest_rows
 
-    rows = [{"seconds": "3.0", "id": "a", "generator": "own"}, {"seconds": "12.5", "id": "b", "generator": "own"},
-            {"seconds": "7", "id": "c", "generator": "own"}, {"seconds": "20", "id": "d", "generator": "independent"},
-            {"seconds": "25", "id": "e", "generator": "independent"},
-            {"seconds": "1", "id": "f", "generator": "independent"}]
-    # per generator: the own recordings, regenerated longer than they ran in the study, are not crowded out
-    assert [r["id"] for r in slowest_rows(rows, 2)] == ["b", "c", "e", "d"]
+    def row(ident, generator, channels, effect, seed, seconds):
+        return {"id": ident, "generator": generator, "channels": channels, "effect": effect, "seed": str(seed),
+                "seconds": str(seconds)}
+
+    rows = [row("a", "own", "both", "rod", 101, 9.0), row("b", "own", "both", "rod", 100, 8.0),
+            row("c", "own", "both", "rod", 102, 2.0),
+            # one loaded row is the slowest single row, but its effect's median is lower
+            row("d", "own", "both", "gain", 100, 30.0), row("e", "own", "both", "gain", 101, 1.0),
+            row("f", "own", "both", "gain", 102, 1.0),
+            row("g", "own", "magnetization", "heat", 100, 3.0), row("h", "own", "magnetization", "lag", 100, 2.0),
+            row("i", "independent", "both", "lag", 100, 20.0), row("j", "independent", "both", "eddy", 100, 25.0)]
+    # every seed of the slowest effect, in seed order, for each generator and channel set
+    assert [r["id"] for r in slowest_rows(rows, 1)] == ["b", "a", "c", "g", "j"]
+    assert {r["id"] for r in slowest_rows(rows, 2)} == set("abcdefghij")
     common = {"generator": "own", "channels": "both", "effect": "rod_dynamics", "seed": 100,
               "seconds_in_study": 30.0, "study_load_average": 5.0, "load_average_before": 1.0,
               "load_average_after": 1.2, "verdict": "rod_dynamics", "verdict_in_study": "rod_dynamics",
