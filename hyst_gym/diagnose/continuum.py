@@ -56,7 +56,10 @@ def try_continuum(split: Split, base, released, decision, base_heldout, share, w
     continuum rods right and 4 other effects wrong (a Delta-E law, a heating law, two two-phase rods)."""
     fem_structure = Structure("fem", base.model.structure.anhysteretic, None, base.model.structure.fit_mechanics,
                               base.model.structure.mechanics_tolerance)
-    fits = {"finite-element rod base": lambda: calibrate(split, fem_structure, workers=workers)}
+    # the magnetization channel does not see the transducer: the FEM base starts from the lumped calibration's
+    # magnetic fits (both channels) rather than fitting them again
+    fits = {"finite-element rod base": lambda: calibrate(split, fem_structure, workers=workers,
+                                                         magnetic_fits=base.magnetic_fits)}
     if released is not None:
         fits["lumped base, mechanics released, with a second mode"] = lambda: fit_candidate(
             split, released, "rod_dynamics")

@@ -53,6 +53,9 @@ class FitResult:
     n_free: int
     evaluations: int
     magnetic_values: dict | None = None  # hysteresis fitted to the magnetization channel alone
+    #: every start's hysteresis fitted to the magnetization channel alone (the calibration's first stage), in
+    #: the order of the starts: what another base on the same record reuses (the channel does not depend on it)
+    magnetic_fits: list | None = None
     failure: str | None = None   # why the fit failed (None: it did not); then sse is inf
 
     @property

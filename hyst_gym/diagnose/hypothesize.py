@@ -62,10 +62,14 @@ def _first_best(results):
 
 
 def calibrate(split: Split, structure: Structure, n_points=128, keep=2, progress=None,
-              workers: int = 1) -> FitResult:
+              workers: int = 1, magnetic_fits=None) -> FitResult:
     """Stage 1: global Sobol search over the hysteresis parameters (transducer gain and bias
     solved linearly), then local least squares of everything from the ``keep`` best starts (in
-    up to ``workers`` threads)."""
+    up to ``workers`` threads).
+
+    ``magnetic_fits``: with both channels, another base's :attr:`~.fit.FitResult.magnetic_fits` on the same
+    split, used in place of this calibration's first stage (the hysteresis fitted to the magnetization alone,
+    which no transducer enters)."""
     recording = split.recording
     model = Model(recording, structure, base_parameters(recording, structure), split.max_field_step)
     pair = _linear_pair(model)
@@ -75,15 +79,20 @@ def calibrate(split: Split, structure: Structure, n_points=128, keep=2, progress
     if both:
         # Fit the hysteresis to the magnetization channel first, so that a displacement channel the
         # base transducer cannot follow does not drag the hysteresis parameters; then fit jointly.
-        magnetic_only = Model(recording, structure, model.parameters, split.max_field_step)
-        magnetic_only.channels = ("magnetization",)
-        searched = global_search(magnetic_only, split.noise, split.fit_mask, names, n_points=n_points, keep=keep,
-                                 extra_starts=informed)
-        magnetic_fits = in_threads(lambda start: split.fit(magnetic_only, start, max_nfev=60), searched, workers)
+        reused = magnetic_fits is not None
+        if not reused:
+            magnetic_only = Model(recording, structure, model.parameters, split.max_field_step)
+            magnetic_only.channels = ("magnetization",)
+            searched = global_search(magnetic_only, split.noise, split.fit_mask, names, n_points=n_points,
+                                     keep=keep, extra_starts=informed)
+            magnetic_fits = in_threads(lambda start: split.fit(magnetic_only, start, max_nfev=60), searched,
+                                       workers)
         magnetic_best = _first_best(magnetic_fits)
         starts = []
         for magnetic in magnetic_fits:
-            fitted = magnetic.values
+            # another base's: its hysteresis, this base's own transducer at its initial values
+            fitted = ({**model.values(), **{n: magnetic.values[n] for n in HYSTERESIS_NAMES}} if reused
+                      else magnetic.values)
             m = model.magnetization([fitted])[:, 0]
             starts.append(_solve_linear_outputs(model, fitted, m, split.noise, split.fit_mask, pair)
                           if pair else fitted)
@@ -97,6 +106,7 @@ def calibrate(split: Split, structure: Structure, n_points=128, keep=2, progress
         progress.update(len(results))
     if both:
         best.magnetic_values = {n: magnetic_best.values[n] for n in HYSTERESIS_NAMES}
+        best.magnetic_fits = magnetic_fits
     return best
 
 
