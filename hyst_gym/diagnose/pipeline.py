@@ -221,12 +221,25 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
     decision = decide(candidates, base_heldout, recording.channels, mechanics_pinned=mechanics_pinned,
                       base_structure=structure_left, base_residual=base_residual)
     continuum = {}
-    if decision.verdict == "unexplained" and structure.transducer == "lumped" and "displacement" in recording.channels:
+    # a second mode that names the mechanical slot but leaves a material residual (a continuum rod whose
+    # modes one extra mode cannot all follow) gets the slot's richer family too; it replaces the second
+    # mode only where it explains the record, so the verdict can only gain
+    second_mode_short = (decision.verdict == "rod_dynamics" and decision.chosen is not None
+                         and decision.chosen.heldout_rmse > EXPLAINED_RMSE)
+    if ((decision.verdict == "unexplained" or second_mode_short) and structure.transducer == "lumped"
+            and "displacement" in recording.channels):
         share = resonance_power_share(base, split.noise)
         if share >= CONTINUUM_POWER_SHARE:
             bar.set_postfix_str("continuum")
-            decision, continuum = try_continuum(split, base, released if mechanics_pinned else None, decision,
-                                                base_heldout, share, workers)
+            continued, continuum = try_continuum(split, base, released if mechanics_pinned else None, decision,
+                                                 base_heldout, share, workers)
+            if decision.verdict == "unexplained" or continuum["named"]:
+                decision = continued
+            else:
+                decision.notes.append(f"the second mode leaves {decision.chosen.heldout_rmse:.2f} noise units "
+                                      "held out; continuum mechanics tried, neither explains more: "
+                                      + "; ".join(f"{label}: {tried['heldout_rmse']:.2f}"
+                                                  for label, tried in continuum["tried"].items()))
     directions = unidentified_directions(base, split.noise, split.fit_mask)
     if directions:
         notes_on_priors.append("the record does not determine " + "; ".join(
