@@ -422,7 +422,7 @@ def _quadratic_outputs(model, base_values, m, fit_mask):
     design = np.column_stack([model.displacement(unit, signal)[fit_mask] for signal in signals])
     if not np.all(np.isfinite(design)):
         return dict(base_values)  # mechanics unstable at these values: nothing to solve
-    # columns of very different sizes (M^6/Ms^5 against 1): scaled to unit norm for the solve
+    # columns of very different sizes (M^4/Ms^3 against 1): scaled to unit norm for the solve
     norms = np.linalg.norm(design, axis=0)
     norms[norms == 0.0] = 1.0
     scaled, *_ = np.linalg.lstsq(design / norms, model.recording.displacement[fit_mask], rcond=None)
