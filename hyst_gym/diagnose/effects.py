@@ -313,8 +313,14 @@ def _no_parameters(recording, structure, base_values):
 # Each: (model, start = base values with the effect's parameters at their initial values) -> starts.
 
 
+def lumped_mode_hz(model) -> float:
+    """Hz: the lumped mode's frequency that ``model``'s second-mode range was built from (its bottom is
+    ``SECOND_MODE_BELOW`` times it, :func:`_rod_parameters`)."""
+    return model.parameters["f2"].lower / SECOND_MODE_BELOW
+
+
 def _rod_starts(model, start):
-    f1 = model.parameters["f2"].lower / SECOND_MODE_BELOW
+    f1 = lumped_mode_hz(model)
     above = np.geomspace(SECOND_MODE_START_ABOVE * f1, model.parameters["f2"].upper * 0.9, 3)
     return [dict(start, f2=f, g2=0.02) for f in (SECOND_MODE_START_BELOW * f1, *above)]
 

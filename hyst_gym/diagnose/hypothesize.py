@@ -14,8 +14,8 @@ from dataclasses import replace
 import numpy as np
 
 from .decide import ACCEPT_DELTA_BIC, ACCEPT_IMPROVEMENT
-from .effects import (EFFECT_PARAMETERS, EVEN_LAW_NAMES, EVEN_LAW_POWERS, SECOND_MODE_BELOW, SENSOR_DYNAMICS_NAMES,
-                      effect as registered, effect_starts)
+from .effects import (EFFECT_PARAMETERS, EVEN_LAW_NAMES, EVEN_LAW_POWERS, SENSOR_DYNAMICS_NAMES, effect as registered,
+                      effect_starts, lumped_mode_hz)
 from .fit import BASE_FIT_TOLERANCE, FitResult, Objective, Split, _solve_linear_outputs, global_search
 from .kernels import step_classes
 from .model import Model, Structure, base_parameters, extension_parameters, sensor_dynamics, slope_factor
@@ -183,7 +183,7 @@ def _second_mode_starts(split, base, effect, model):
     lumped mode) is at least :data:`SECOND_MODE_BELOW_SHARE` of what one above it explains. Why: a mode below
     is a compliant mount's, and its start (a fit of its own) was the costliest of the effect's."""
     starts = effect_starts(model, effect.name, base.values)
-    f1 = model.parameters["f2"].lower / SECOND_MODE_BELOW
+    f1 = lumped_mode_hz(model)
     below = [start for start in starts if start["f2"] < f1]
     if not below or len(below) == len(starts):
         return model, starts
