@@ -144,14 +144,29 @@ CONFIDENCE_BINS = ((0.0, 0.2), (0.2, 0.5), (0.5, 0.8), (0.8, 0.9), (0.9, 1.0))
 
 
 def reliability(rows) -> list[str]:
-    """Markdown lines: per confidence bin, how many verdicts and how many exactly right."""
-    lines = ["## Reliability of `confidence`", "", "| confidence | n | exactly right |", "|---|---|---|"]
+    """Markdown lines: per confidence bin, how many verdicts, and how often each kind of verdict holds.
+
+    A single name holds when it is exactly right; an ``ambiguous`` verdict states that the truth is one of
+    its tied effects, and its confidence is its margin over the best effect left out of the tie (see
+    :mod:`hyst_gym.diagnose.decide`), so it holds when the truth is in the tie. Both are shown apart, with
+    every other verdict (``none``, ``unexplained``), so that no kind hides another."""
+    lines = ["## Reliability of `confidence`", "",
+             "| confidence | n | exactly right (all verdicts) | single names: right / n | ties: truth in the tie / n "
+             "| verdict holds |", "|---|---|---|---|---|---|"]
     scored = [r for r in rows if r["confidence"] is not None and r["confidence"] == r["confidence"]]
+
+    def share(k, n):
+        return f"{k} ({_pct(k / n)})" if n else "–"
 
     def row(label, lo, hi):
         group = [r for r in scored if lo <= r["confidence"] < hi or (hi == 1.0 and r["confidence"] == 1.0)]
         right = sum(r["outcome"] == "right" for r in group)
-        return f"| {label} | {len(group)} | {right} ({_pct(right / len(group)) if group else '–'}) |"
+        ties = [r for r in group if r["verdict"] == "ambiguous"]
+        tie_holds = sum(r["outcome"] == "ambiguous_with_truth" for r in ties)
+        singles = [r for r in group if r["verdict"] not in ("ambiguous", "none", "unexplained")]
+        single_right = sum(r["outcome"] == "right" for r in singles)
+        return (f"| {label} | {len(group)} | {share(right, len(group))} | {single_right} / {len(singles)} | "
+                f"{tie_holds} / {len(ties)} | {share(right + tie_holds, len(group))} |")
 
     lines += [row(f"{lo:.1f}-{hi:.1f}", lo, hi) for lo, hi in CONFIDENCE_BINS]
     return lines + [row("**0.8-1.0 (all)**", 0.8, 1.0), ""]

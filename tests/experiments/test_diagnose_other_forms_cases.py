@@ -114,15 +114,21 @@ def test_tally_reports_the_reduction_of_right_names_only():
     assert t["right"] == 4 and t["wrong_name"] == 1
 
 
-def test_reliability_table_bins_confidences():
-    """Each verdict counts in exactly one bin (confidence 1.0 in the last); the summary row covers 0.8-1.0."""
+def test_reliability_table_bins_confidences_and_scores_single_names_and_ties_apart():
+    """Each verdict counts in exactly one bin (confidence 1.0 in the last); the summary row covers 0.8-1.0. A
+    single name holds when exactly right, a tie when it contains the truth; `none` counts in neither column."""
     from experiments.diagnose_other_forms import reliability
 
-    rows = [{"confidence": c, "outcome": o} for c, o in
-            ((0.1, "other"), (0.85, "right"), (1.0, "right"), (0.95, "wrong_name"), (None, "other"))]
+    rows = [{"confidence": c, "verdict": v, "outcome": o} for c, v, o in
+            ((0.1, "unexplained", "other"), (0.85, "delta_e", "right"), (1.0, "mains_pickup", "right"),
+             (0.95, "sensor_map", "wrong_name"), (0.9, "ambiguous", "ambiguous_with_truth"),
+             (0.92, "ambiguous", "other"), (0.3, "none", "right"), (None, "none", "other"))]
     lines = reliability(rows)
-    assert "| 0.0-0.2 | 1 | 0 (0 %) |" in lines and "| 0.8-0.9 | 1 | 1 (100 %) |" in lines
-    assert "| 0.9-1.0 | 2 | 1 (50 %) |" in lines and "| **0.8-1.0 (all)** | 3 | 2 (67 %) |" in lines
+    assert "| 0.0-0.2 | 1 | 0 (0 %) | 0 / 0 | 0 / 0 | 0 (0 %) |" in lines
+    assert "| 0.2-0.5 | 1 | 1 (100 %) | 0 / 0 | 0 / 0 | 1 (100 %) |" in lines
+    assert "| 0.8-0.9 | 1 | 1 (100 %) | 1 / 1 | 0 / 0 | 1 (100 %) |" in lines
+    assert "| 0.9-1.0 | 4 | 1 (25 %) | 1 / 2 | 1 / 2 | 2 (50 %) |" in lines
+    assert "| **0.8-1.0 (all)** | 5 | 2 (40 %) | 2 / 3 | 1 / 2 | 3 (60 %) |" in lines
 
 
 def test_a_ringing_magnetization_sensor_is_named_sensor_dynamics_at_its_frequency():
