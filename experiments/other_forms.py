@@ -1081,21 +1081,72 @@ def numerics_difference(st: Setup, outputs: dict, wanted) -> dict:
                       / (st.base.conditions.noise_rel * float(np.ptp(outputs[ch])))) for ch in wanted}
 
 
-def generate(case: str, seed: int, channels: str = "both", *, n_samples: int | None = None):
-    """A synthetic recording of ``case``: (Recording, truth dict); deterministic."""
+#: Noise colours the generator can draw (``generate(noise=...)``): white Gaussian sensor noise, or a mixture of
+#: white noise and a coloured part that second differences cannot see.
+NOISE_COLOURS = ("white", "coloured")
+#: Longest period (samples) at which the flicker noise's spectrum still rises (:func:`coloured_noise`).
+FLICKER_LONGEST_PERIOD = 200.0
+
+
+def coloured_noise(rng, n: int) -> tuple[np.ndarray, dict]:
+    """Unit-variance sensor noise whose spectrum is not flat: a share (0.3-0.7 of the variance, uniform) of
+    either AR(1) noise with a correlation time of 3-30 samples (log-uniform; an amplifier's bandwidth below the
+    sample rate) or flicker noise with a 1/f^beta power spectrum, beta 0.8-1.5 (uniform; a sensor's electronics),
+    the rest white; returns (noise, what was drawn).
+
+    The flicker spectrum is flat below a period of :data:`FLICKER_LONGEST_PERIOD` samples: 1/f down to the
+    record's own length would be a wander of the sensor's offset over the record, which is an effect the tool
+    names (``sensor_drift``; the ``sensor_offset_drift`` case draws it as a random walk), not noise."""
+    form = _choice(rng, ("ar1", "flicker"))
+    share = float(rng.uniform(0.3, 0.7))
+    white = rng.standard_normal(n)
+    if form == "ar1":
+        tau = ir._log_uniform(rng, 3.0, 30.0)
+        phi = math.exp(-1.0 / tau)
+        drive = rng.standard_normal(n) * math.sqrt(1.0 - phi * phi)
+        drive[0] = rng.standard_normal()  # start in the stationary distribution
+        part = signal.lfilter([1.0], [1.0, -phi], drive)
+        drawn = {"form": form, "share": share, "correlation_samples": tau}
+    else:
+        beta = float(rng.uniform(0.8, 1.5))
+        spectrum = np.fft.rfft(rng.standard_normal(n))
+        lowest = max(1.0, n / FLICKER_LONGEST_PERIOD)  # in cycles per record
+        spectrum *= np.maximum(np.arange(spectrum.size, dtype=float), lowest) ** (-beta / 2.0)
+        spectrum[0] = 0.0
+        part = np.fft.irfft(spectrum, n)
+        drawn = {"form": form, "share": share, "exponent": beta}
+    part = part / float(np.std(part))
+    return math.sqrt(1.0 - share) * white + math.sqrt(share) * part, drawn
+
+
+def generate(case: str, seed: int, channels: str = "both", *, n_samples: int | None = None, noise: str = "white"):
+    """A synthetic recording of ``case``: (Recording, truth dict); deterministic.
+
+    ``noise``: ``"white"`` (Gaussian, the studies' default) or ``"coloured"`` (:func:`coloured_noise`, drawn per
+    channel from its own stream); the standard deviation is the same (``noise_rel`` of each channel's span)."""
     from hyst_gym.diagnose.recording import Recording
 
+    if noise not in NOISE_COLOURS:
+        raise ValueError(f"noise must be one of {', '.join(NOISE_COLOURS)}, got {noise!r}")
     sim = simulate(case, seed, channels, n_samples=n_samples)
     rng = ir._stream(seed, "other_forms", "noise", case, channels)
-    noisy, sigmas = {}, {}
+    noisy, sigmas, colours = {}, {}, {}
     for ch in BOTH:
         if ch in sim.clean:
             y = sim.clean[ch]
             sigmas[ch] = sim.truth["noise_rel"] * float(np.ptp(y))
-            noisy[ch] = y + sigmas[ch] * rng.standard_normal(y.size)
+            if noise == "white":
+                unit = rng.standard_normal(y.size)
+            else:
+                unit, colours[ch] = coloured_noise(ir._stream(seed, "other_forms", "noise_colour", case, channels,
+                                                              ch), y.size)
+            noisy[ch] = y + sigmas[ch] * unit
     recording = Recording(time=sim.time, field=sim.field, metadata=sidecar(seed),
                           source=f"synthetic recording (other forms), seed {seed}", **noisy)
-    return recording, dict(sim.truth, noise_std=sigmas)
+    truth = dict(sim.truth, noise_std=sigmas)
+    if colours:
+        truth["noise_colour"] = colours
+    return recording, truth
 
 
 def replay(case: str, seed: int, channels: str = "both", drive=None, *, noise_seed: int,
@@ -1135,11 +1186,12 @@ def sidecar(seed: int) -> dict:
     return {"material": "Terfenol-D (synthetic)", "notes": f"synthetic recording, seed {seed}"}
 
 
-def write(case: str, seed: int, channels: str, out: Path, *, n_samples=None, truth_path: Path | None = None):
+def write(case: str, seed: int, channels: str, out: Path, *, n_samples=None, truth_path: Path | None = None,
+          noise: str = "white"):
     """Write the CSV (+ sidecar) and optionally the truth JSON; returns (recording, truth)."""
     from hyst_gym.diagnose.recording import write_recording
 
-    recording, truth = generate(case, seed, channels, n_samples=n_samples)
+    recording, truth = generate(case, seed, channels, n_samples=n_samples, noise=noise)
     write_recording(out, recording, recording.metadata)
     if truth_path is not None:
         truth_path.parent.mkdir(parents=True, exist_ok=True)

@@ -51,6 +51,42 @@ def test_generate_is_deterministic_with_noise():
     assert "mains" not in str(r1.metadata).lower()
 
 
+def test_coloured_noise_has_unit_variance_and_the_drawn_correlation():
+    """AR(1) noise: the lag-1 autocorrelation is the white share's 0 plus the coloured share times
+    exp(-1/tau); flicker: correlated at short lags, and decorrelated beyond its longest period. Both
+    deterministic per stream and of unit variance."""
+    n = 40000
+    seen = set()
+    for seed in range(12):
+        noise, drawn = of.coloured_noise(ir._stream(seed, "test", "colour"), n)
+        again, _ = of.coloured_noise(ir._stream(seed, "test", "colour"), n)
+        np.testing.assert_array_equal(noise, again)
+        assert abs(np.std(noise) - 1.0) < 0.05
+        rho1 = float(np.mean(noise[:-1] * noise[1:]) / np.mean(noise * noise))
+        seen.add(drawn["form"])
+        if drawn["form"] == "ar1":
+            expected = drawn["share"] * math.exp(-1.0 / drawn["correlation_samples"])
+            assert abs(rho1 - expected) < 0.03, (rho1, drawn)
+        else:
+            far = int(3 * of.FLICKER_LONGEST_PERIOD)
+            rho_far = float(np.mean(noise[:-far] * noise[far:]) / np.mean(noise * noise))
+            assert rho1 > 0.1 and abs(rho_far) < 0.1, (rho1, rho_far, drawn)
+    assert seen == {"ar1", "flicker"}
+
+
+def test_coloured_recordings_keep_the_clean_signal_and_the_noise_level():
+    (white, t_white), (coloured, t_col) = (of.generate("mains_pickup", 6, "both", n_samples=4000, noise=n)
+                                           for n in ("white", "coloured"))
+    assert "noise_colour" in t_col and "noise_colour" not in t_white
+    sim = of.simulate("mains_pickup", 6, "both", n_samples=4000)
+    for ch in ("magnetization", "displacement"):
+        residual = getattr(coloured, ch) - sim.clean[ch]
+        assert abs(np.std(residual) / t_col["noise_std"][ch] - 1.0) < 0.15
+        assert not np.array_equal(getattr(white, ch), getattr(coloured, ch))
+    with pytest.raises(ValueError, match="noise must be one of"):
+        of.generate("mains_pickup", 6, "both", n_samples=600, noise="pink")
+
+
 @pytest.mark.parametrize("case", SIZED)
 def test_effect_vanishes_at_zero_size(case):
     st = of.setup(case, 6, SHORT)
