@@ -45,6 +45,8 @@ def play(agent, seeds, options=None) -> dict:
     seeds = [int(s) for s in seeds]
     n = len(seeds)
     env = DiscriminateVectorEnv(n, TASK)
+    if getattr(agent, "reads_truth", False):  # the bound's check: a clairvoyant rule reads this env's truth
+        agent.truth_of = lambda: env.truth
     agent.reset(seeds[0])
     observations, _ = env.reset(seed=seeds, options=options)
     draws = {"truth": env.truth.tolist(), "start_temperature": env.start_temperature.tolist()}
@@ -88,6 +90,7 @@ def mean(matrix) -> float:
 
 def measure(heldout: int, tuning: int, n_boot: int, log=print) -> dict:
     from baselines.scenarios import HELDOUT_SEEDS, TUNING_SEEDS
+    from baselines.discriminate_agents import ClairvoyantSeparation
     from experiments.suite.v2 import bootstrap
     from hyst_gym.envs.discriminate import DiscriminateVectorEnv
 
@@ -112,10 +115,17 @@ def measure(heldout: int, tuning: int, n_boot: int, log=print) -> dict:
             if agents[name][0] == "feedback":
                 feedback_paths.append(result["fields"])
     held_times = np.array([played[name]["time_s"] for name in names])
+    # the bound's check: the greedy rule that reads the truth (the bound holds for it too), on the same runs
+    clairvoyant = ClairvoyantSeparation(env, lambda: env.truth, margin=min(MARGINS))
+    clairvoyant_runs = [play(clairvoyant, held)]
+    clairvoyant_runs += [play(clairvoyant, [common.REPLICATE_OFFSET + 1000 * int(seed) + r for seed in held], options)
+                         for r in range(REPLICATES)]
+    feedback_paths += [run["fields"] for run in clairvoyant_runs]
     choice = np.argmin(replicates.sum(axis=0), axis=0)
     oracle = held_times[choice, np.arange(len(held))]
     log(f"[discriminate] oracle replicates played ({time.time() - start:.0f} s)")
     bound = information_floor(env, draws, np.concatenate(feedback_paths))
+    clairvoyant_value, clairvoyant_ci = bootstrap(mean, n_boot, clairvoyant_runs[0]["time_s"])
     floor = np.asarray(bound["per_draw"])
     log(f"[discriminate] information bound searched ({time.time() - start:.0f} s)")
     picks = {"open_loop": min((n for n in names if agents[n][0] == "open_loop"), key=tuned.get),
@@ -124,8 +134,10 @@ def measure(heldout: int, tuning: int, n_boot: int, log=print) -> dict:
             "greedy_separation": ("feedback", picks["feedback"])}
     # every agent's per-draw mean over the held-out run and the replicates (same truth and start temperature): the
     # expectation over the noise that the bound bounds, per draw
-    runs = np.concatenate([held_times[None], replicates])  # (1 + REPLICATES, agents, draws)
-    per_draw_means = runs.mean(axis=0)
+    names = names + [clairvoyant.name]
+    runs = np.concatenate([np.concatenate([held_times[None], replicates]),
+                           np.array([run["time_s"] for run in clairvoyant_runs])[:, None, :]], axis=1)
+    per_draw_means = runs.mean(axis=0)  # (agents and the clairvoyant rule, draws)
     table = {}
     for label, (kind, name) in rows.items():
         times = played[name]["time_s"]
@@ -158,6 +170,10 @@ def measure(heldout: int, tuning: int, n_boot: int, log=print) -> dict:
                       "per_draw": floor.tolist(), "how": bound["how"], "routes": bound["routes"],
                       "envelope_check": bound["check"], "adversarial_check": check,
                       "best_agent_over_floor": table[best]["mean_s"] / floor_value, "best_agent": best},
+            "clairvoyant": {"agent": clairvoyant.name, "mean_s": clairvoyant_value, "ci": clairvoyant_ci,
+                            "over_floor": clairvoyant_value / floor_value,
+                            "how": "the greedy rule weighing the truth's pairs by the alternatives' posteriors; reads "
+                                   "the truth (a check of the bound, which holds for it too; no benchmark agent)"},
             "oracle": {"kind": "oracle", "mean_s": oracle_value, "ci": oracle_ci, "per_draw": oracle.tolist(),
                        "choice": [names[i] for i in choice],
                        "how": f"per draw, the family's agent best on {REPLICATES} noise replicates of the draw "
@@ -205,7 +221,7 @@ def information_floor(env, draws: dict, played_paths: np.ndarray) -> dict:
 
 def markdown(data: dict) -> str:
     floor, oracle, head, cand = data["floor"], data["oracle"], data["headroom"], data["candidates"]
-    check, envelope = floor["adversarial_check"], floor["envelope_check"]
+    check, envelope, seer = floor["adversarial_check"], floor["envelope_check"], data["clairvoyant"]
     lines = [f"## Discriminate measured: `{data['task']}`", "",
              f"Time to the decision (the truth's posterior at 0.99), s, mean over {data['heldout_draws']} held-out "
              f"draws (10 s when undecided or overheated; 95 % bootstrap CI). Rerun: `{data['command']}`.", "",
@@ -233,7 +249,8 @@ def markdown(data: dict) -> str:
                   f"{check['tightest_mean_ratio']:.2f} ({check['tightest_mean_agent']}); single runs below their "
                   f"draw's bound {check['single_runs_below']} of {check['single_runs']} (the bound is on the "
                   f"expectation over the noise). Best agent over the floor: {floor['best_agent_over_floor']:.2f} "
-                  f"({floor['best_agent']})."]
+                  f"({floor['best_agent']}); {seer['agent']}, {seer['how']}: {seer['mean_s']:.2f} s "
+                  f"[{seer['ci'][0]:.2f}, {seer['ci'][1]:.2f}], {seer['over_floor']:.2f} times the floor."]
     lines += ["", f"Reference (best open-loop agent): {data['reference']}; headroom over the floor "
                   f"{100 * head['value']:.0f} % [{100 * head['ci'][0]:.0f}, {100 * head['ci'][1]:.0f}] "
                   f"({'above' if data['headroom_above_target'] else 'not above'} 25 %). In the suite: "
