@@ -22,6 +22,11 @@ the applied field, a Gaussian likelihood of the measured M/Ms). The episode ends
 probability reaches :data:`DECIDED` (terminated, decided), at an overheat (terminated), or at 200 steps; the
 score is the time to the decision (s, the deciding step included; the whole 10 s when undecided or overheated,
 an overheat on the deciding step too).
+
+:func:`decision_time_bound` bounds the expected score of any agent from below, given upper envelopes of the
+relative entropy between the truth's and the alternatives' noise-free outputs that admissible fields can gather
+(the data-processing inequality at the posterior's threshold, :data:`DECISION_ODDS`; derived on
+docs/envs/discriminate.md).
 """
 
 from __future__ import annotations
