@@ -80,3 +80,21 @@ def test_the_clairvoyant_rule_weighs_only_the_truths_pairs():
     weights = agent._pair_weights(posterior)
     assert np.allclose(weights[(0, 1)], [0.3, 0.0]) and np.allclose(weights[(0, 2)], [0.2, 0.1])
     assert np.allclose(weights[(1, 2)], [0.0, 0.6])
+
+
+@pytest.mark.slow
+def test_the_bound_lies_below_the_decision_time_of_an_open_loop_agent():
+    """Per draw, the bound at the searched envelope lies below the mean over noise replicates of an open-loop
+    triangle's decision time (the expectation the bound bounds). It can fail: the envelope is a search's."""
+    from experiments.suite import discriminate as measured
+
+    env = DiscriminateVectorEnv(1)
+    agent = triangle(env.config, 1.0, 2.0)
+    replicates = 24
+    for truth, temperature in ((0, 283.15), (1, 303.15), (2, 313.15)):
+        seeds = [7_000 + 100 * truth + r for r in range(replicates)]
+        options = {"truth": np.full(replicates, truth), "initial_temperature": np.full(replicates, temperature)}
+        times = measured.play(agent, seeds, options)["time_s"]
+        envelope = measured.separation_envelope(env, temperature, seed=truth)
+        bound = measured.information_bound(envelope, truth, env.config.episode_steps).steps * env.config.dt
+        assert 0.0 < bound < times.mean()
