@@ -90,7 +90,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .effects import CONFUSABLE, EFFECT_SLOTS, effect as registered, static_map_slopes
+from .effects import CONFUSABLE, EFFECT_SLOTS, RELATIVE_CHANGE_LIMIT, effect as registered, static_map_slopes
 from .fit import local_fit
 from .identifiability import channel_set, separating_measurement
 from .model import Model
@@ -181,6 +181,12 @@ def _check_bounds(out: Plausibility, effect, fit):
         if min(lower, abs(p.upper - value)) < 1e-3 * span and value != 0.0:
             out.reject(f"{name} = {value:.4g} sits at the bound of its physical range "
                        f"[{p.lower:.4g}, {p.upper:.4g}]", at_bound=name)
+    if getattr(effect, "relative_changes", None) is not None:
+        limit = RELATIVE_CHANGE_LIMIT
+        for name, change in effect.relative_changes(model.recording, fit.values).items():
+            if abs(change) > (1.0 - 1e-3) * limit:
+                out.reject(f"{name} = {fit.values[name]:.4g} changes its parameter by {100 * change:+.3g} % over the "
+                           f"record, at or past the physical limit of {100 * limit:.3g} %", at_bound=name)
 
 
 def _check_loop_offset(out: Plausibility, fit, bias):

@@ -159,6 +159,25 @@ def _eddy_parameters(recording, structure, base_values):
     return {"k_e": Parameter("k_e", 1e-3 * upper, 0.0, upper, "s", scale=1e-2 * upper)}
 
 
+#: 1/K: the search range of thermal_drift's coefficients beta_Ms, beta_k (beta_c: 0.4 of it), today's ranges, now
+#: search ranges, not physical walls (the second fitting stage widens them to RELATIVE_CHANGE_LIMIT).
+THERMAL_BETA_RANGE = 0.05
+#: The largest relative change of Ms, k or c over the record that thermal_drift may name: |X(T)/X - 1| at most
+#: 0.95 at the record's largest fitted temperature rise, the same for every record. Why 0.95, not 0.9: a pinning
+#: collapsing toward a Curie point falls by ~90 % (the fit of tests/diagnose/test_time_variation.py's seed 2
+#: record: 91 %); a fit that needs more is mimicking something else.
+RELATIVE_CHANGE_LIMIT = 0.95
+#: thermal_drift's coefficients and the parameter each moves.
+THERMAL_COEFFICIENTS = (("beta_Ms", "Ms"), ("beta_k", "k"), ("beta_c", "c"))
+
+
+def thermal_relative_changes(recording, values) -> dict:
+    """{coefficient: relative change of its parameter at the record's largest fitted temperature rise},
+    ``-beta*max(theta)`` (X(T) = X*(1 - beta*theta))."""
+    peak = float(np.max(temperature_rise_trace(recording, values)))
+    return {name: -values.get(name, 0.0) * peak for name, _ in THERMAL_COEFFICIENTS}
+
+
 def _thermal_parameters(recording, structure, base_values):
     frame = Frame.of(recording)
     mean_sq = float(np.mean(recording.field ** 2)) or 1.0
@@ -166,14 +185,15 @@ def _thermal_parameters(recording, structure, base_values):
     return {
         "heating": Parameter("heating", 0.01 * upper, 0.0, upper, "K/s per (A/m)^2", scale=0.01 * upper),
         "tau_th": Parameter("tau_th", frame.duration, 5 * frame.dt, 1e3 * frame.duration, "s", log=True),
-        # Ms falls fastest near a Curie point: in the measured gadolinium loops (data/real/gd-temperature, Tc 18.3 C)
-        # the major loop's largest M falls 3.4 %/K from +5 to +15 C (and its coercive field 2.3 %/K, inside beta_k's
-        # range); the range admits such a material, 0.01/K did not
-        "beta_Ms": Parameter("beta_Ms", 0.0, -0.05, 0.05, "1/K", scale=1e-3),
-        # the pinning and the reversibility move with the temperature too (the measured gadolinium loops: k
-        # collapses toward the Curie point); linear in the rise as Ms(T), the plain heating law at 0
-        "beta_k": Parameter("beta_k", 0.0, -0.05, 0.05, "1/K", scale=1e-3),
-        "beta_c": Parameter("beta_c", 0.0, -0.02, 0.02, "1/K", scale=1e-3),
+        # Ms, the pinning k and the reversibility c move with the temperature too (the measured gadolinium loops:
+        # k collapses toward the Curie point), linear in the rise, the plain heating law at 0. Their ranges per
+        # kelvin are search ranges only (registered as such): the rise is inferred through a ~ T (4), so a record
+        # where a barely moves while k moves much infers a small rise and a large coefficient per kelvin. The
+        # physical wall is on what the record determines, the relative change over the record
+        # (RELATIVE_CHANGE_LIMIT, checked by thermal_relative_changes in the plausibility checks)
+        "beta_Ms": Parameter("beta_Ms", 0.0, -THERMAL_BETA_RANGE, THERMAL_BETA_RANGE, "1/K", scale=1e-3),
+        "beta_k": Parameter("beta_k", 0.0, -THERMAL_BETA_RANGE, THERMAL_BETA_RANGE, "1/K", scale=1e-3),
+        "beta_c": Parameter("beta_c", 0.0, -0.4 * THERMAL_BETA_RANGE, 0.4 * THERMAL_BETA_RANGE, "1/K", scale=1e-3),
         # the family's heating law: drive ~ |H|^p (Joule heating of a current-driven coil: p = 2;
         # core or hysteresis loss: p between 1 and 3)
         "heating_exponent": Parameter("heating_exponent", 2.0, 0.5, 4.0, "1", scale=0.5),
@@ -563,6 +583,9 @@ class Effect:
     slopes : ``(values, channels, u) -> [(what, slope)]`` of a static map, which must be monotone
     loop_offset : the parameter that must show as a horizontal offset of the recorded loop
     details : ``(values, recording) -> str`` added to the report's sentence
+    relative_changes : ``(recording, values) -> {parameter: relative change}``: changes over the record whose
+        magnitude must stay below :data:`RELATIVE_CHANGE_LIMIT` (a physical wall on what the record determines,
+        where the parameter's own range is a search range)
     held_first : with strategy ``staged``: its parameters held at their initial values in a first fit (the
         family's older member), then released from that fit and kept only if the fitting block asks for them
     """
@@ -588,6 +611,7 @@ class Effect:
     loop_offset: str | None = None
     details: Callable | None = None
     held_first: tuple = ()
+    relative_changes: Callable | None = None
 
     def main_parameter(self, fit) -> str | None:
         """The parameter the block-consistency check refits in ``fit`` (None: none)."""
@@ -605,7 +629,8 @@ _REGISTERED = (
         parameters=_thermal_parameters,
         identified_by="heating", applies=_always, rate_dependent=False, rescue=("heating",),
         starts=_thermal_starts, strategy="staged_pinning",
-        search_ranges=("tau_th", "heating_exponent"), details=_thermal_details,
+        search_ranges=("tau_th", "heating_exponent", "beta_Ms", "beta_k", "beta_c"), details=_thermal_details,
+        relative_changes=thermal_relative_changes,
         confusable={"anhysteretic_shape": _everywhere(_TEMPERATURE),
                     "delta_e": {"displacement": _TEMPERATURE}}),
     Effect(

@@ -14,8 +14,8 @@ from dataclasses import replace
 import numpy as np
 
 from .decide import ACCEPT_DELTA_BIC, ACCEPT_IMPROVEMENT
-from .effects import (EFFECT_PARAMETERS, EVEN_LAW_NAMES, EVEN_LAW_POWERS, SENSOR_DYNAMICS_NAMES, effect as registered,
-                      effect_starts, lumped_mode_hz)
+from .effects import (EFFECT_PARAMETERS, EVEN_LAW_NAMES, EVEN_LAW_POWERS, RELATIVE_CHANGE_LIMIT, SENSOR_DYNAMICS_NAMES,
+                      effect as registered, effect_starts, lumped_mode_hz)
 from .fit import BASE_FIT_TOLERANCE, FitResult, Objective, Split, _solve_linear_outputs, global_search
 from .kernels import step_classes
 from .model import Model, Structure, base_parameters, extension_parameters, sensor_dynamics, slope_factor
@@ -164,12 +164,38 @@ def _staged_starts(split, base, effect, model):
     return _staged(split, base, effect, model, effect.held_first)
 
 
+def _relative_box(model, values, effect):
+    """``model`` with the ranges of the effect's ``relative_changes`` parameters widened to the physical limit
+    on the relative change over the record (:data:`.effects.RELATIVE_CHANGE_LIMIT`) at the first stage's rise
+    (``values``), never narrower than their search ranges.
+
+    Why: thermal_drift's coefficients per kelvin are search ranges (the rise is inferred through a ~ T, small
+    where a barely moves); the wall is |X(T)/X - 1| <= the limit, checked on the final fit's own rise
+    (:func:`.decide.check_plausibility`). A range of 1/K for all (tried) let the fit wander into a k(T)/c(T)
+    trade and tests/diagnose/test_time_variation.py's pinning records went ``unexplained``; a box of exactly the
+    wall at the first stage's rise pinned seed 2's second stage near 0 (its first stage overshoots the rise)."""
+    params = dict(model.parameters)
+    for name in effect.relative_changes(model.recording, values):
+        per_unit = abs(effect.relative_changes(model.recording, dict(values, **{name: 1.0}))[name])
+        p = params.get(name)
+        if p is None or not p.free or per_unit <= 0.0:
+            continue
+        # |beta*theta| at most the limit; never narrower than the search range (a first stage that overshoots the
+        # rise would otherwise pin the second stage near 0: tests/diagnose/test_time_variation.py's seed 2)
+        upper = max(p.upper, RELATIVE_CHANGE_LIMIT / per_unit)
+        lower = min(p.lower, -RELATIVE_CHANGE_LIMIT / per_unit)
+        params[name] = replace(p, lower=lower, upper=upper, value=float(np.clip(p.value, lower, upper)))
+    return Model(model.recording, model.structure, params, model.max_field_step)
+
+
 def _staged(split, base, effect, model, held_names):
     held = {n: (replace(p, free=False) if n in held_names else p) for n, p in model.parameters.items()}
     held_model = Model(model.recording, model.structure, held, model.max_field_step)
     first = min((split.fit(held_model, start, max_nfev=40) for start in effect_starts(held_model, effect.name,
                                                                                      base.values)),
                 key=lambda result: result.sse)
+    if effect.relative_changes is not None:
+        model = _relative_box(model, first.values, effect)
     full = split.fit(model, first.values, max_nfev=40)
     if full.bic < first.bic - ACCEPT_DELTA_BIC:
         return model, [full.values]

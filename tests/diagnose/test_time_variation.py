@@ -163,3 +163,34 @@ def test_the_ms_drift_range_admits_the_measured_gadolinium_near_its_curie_point(
     values = {n: p.value for n, p in base_parameters(recording, structure).items()}
     beta = extension_parameters(recording, structure, values)["beta_Ms"]
     assert beta.lower <= -slope and slope <= beta.upper
+
+
+def test_thermal_limits_bound_the_relative_change_over_the_record():
+    """thermal_drift's coefficients per kelvin are search ranges; the wall is the relative change of Ms, k, c
+    over the record (|X(T)/X - 1| at most RELATIVE_CHANGE_LIMIT at the largest fitted rise): a small inferred rise
+    with a large beta_k that moves k by half is plausible, a change past the limit is set aside at its bound."""
+    from types import SimpleNamespace
+
+    from hyst_gym.diagnose.decide import Plausibility, _check_bounds
+    from hyst_gym.diagnose.effects import RELATIVE_CHANGE_LIMIT, effect, temperature_rise_trace
+
+    time = np.linspace(0.0, 1.0, 600)
+    field = 5e4 * np.sin(2 * np.pi * 4.0 * time)
+    recording = Recording(time=time, field=field, magnetization=np.tanh(field / 2e4) * 8e5)
+    structure = Structure("none", "ising", "thermal_drift")
+    base = base_parameters(recording, structure)
+    values = {n: p.value for n, p in base.items()}
+    model = Model(recording, structure, {**base, **extension_parameters(recording, structure, values)}, 200.0)
+    values = dict(model.values(), heating=1e-9, tau_th=10.0)
+    peak = float(np.max(temperature_rise_trace(recording, values)))
+    assert 0.0 < peak < 5.0  # a barely moves: a ~ T changes by under 2 %
+    registered = effect("thermal_drift")
+    for change, plausible in ((0.5, True), (-0.9, True), (-0.96, False), (0.97, False)):
+        beta_k = -change / peak
+        out = Plausibility()
+        _check_bounds(out, registered, SimpleNamespace(model=model, values=dict(values, beta_k=beta_k)))
+        assert out.plausible is plausible, (change, beta_k, out.reasons)
+        assert abs(beta_k) > 0.05  # past the old per-kelvin range
+        if not plausible:
+            assert out.at_bound == ["beta_k"] and out.only_at_bound
+    assert RELATIVE_CHANGE_LIMIT == 0.95
