@@ -169,7 +169,9 @@ def check_plausibility(candidate, noise, blocks: int = BLOCKS) -> Plausibility:
 
 
 def _check_bounds(out: Plausibility, effect, fit):
-    """Reject a fit whose parameter sits at a bound of its physical range (search ranges exempt)."""
+    """Reject a fit whose parameter sits at a bound of its physical range (search ranges exempt), or whose
+    effect's ``relative_changes`` move a parameter over the record by :data:`RELATIVE_CHANGE_LIMIT` or more (the
+    physical wall of thermal_drift's coefficients, whose per-kelvin ranges are search ranges)."""
     model = fit.model
     for name in effect.parameter_names:
         p = model.parameters.get(name)
@@ -181,7 +183,7 @@ def _check_bounds(out: Plausibility, effect, fit):
         if min(lower, abs(p.upper - value)) < 1e-3 * span and value != 0.0:
             out.reject(f"{name} = {value:.4g} sits at the bound of its physical range "
                        f"[{p.lower:.4g}, {p.upper:.4g}]", at_bound=name)
-    if getattr(effect, "relative_changes", None) is not None:
+    if getattr(effect, "relative_changes", None) is not None:  # a stand-in effect (tests) may not have it
         limit = RELATIVE_CHANGE_LIMIT
         for name, change in effect.relative_changes(model.recording, fit.values).items():
             if abs(change) > (1.0 - 1e-3) * limit:

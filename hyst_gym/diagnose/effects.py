@@ -159,13 +159,16 @@ def _eddy_parameters(recording, structure, base_values):
     return {"k_e": Parameter("k_e", 1e-3 * upper, 0.0, upper, "s", scale=1e-2 * upper)}
 
 
-#: 1/K: the search range of thermal_drift's coefficients beta_Ms, beta_k (beta_c: 0.4 of it), today's ranges, now
-#: search ranges, not physical walls (the second fitting stage widens them to RELATIVE_CHANGE_LIMIT).
+#: 1/K: thermal_drift's coefficients beta_Ms and beta_k start in [-THERMAL_BETA_RANGE, THERMAL_BETA_RANGE]
+#: (beta_c in 0.4 of it). A search range, not a physical wall: the second fitting stage widens it to
+#: RELATIVE_CHANGE_LIMIT at the first stage's rise. It admits the measured gadolinium near its Curie point
+#: (data/real/gd-temperature, Tc 18.3 C: the major loop's largest M falls 3.4 %/K from +5 to +15 C, its coercive
+#: field 2.3 %/K); 0.01/K did not.
 THERMAL_BETA_RANGE = 0.05
 #: The largest relative change of Ms, k or c over the record that thermal_drift may name: |X(T)/X - 1| at most
 #: 0.95 at the record's largest fitted temperature rise, the same for every record. Why 0.95, not 0.9: a pinning
 #: collapsing toward a Curie point falls by ~90 % (the fit of tests/diagnose/test_time_variation.py's seed 2
-#: record: 91 %); a fit that needs more is mimicking something else.
+#: record: 91 %); a fit that needs more is mimicking something else. Symmetric, as the per-kelvin search ranges are.
 RELATIVE_CHANGE_LIMIT = 0.95
 #: thermal_drift's coefficients and the parameter each moves.
 THERMAL_COEFFICIENTS = (("beta_Ms", "Ms"), ("beta_k", "k"), ("beta_c", "c"))
@@ -173,7 +176,8 @@ THERMAL_COEFFICIENTS = (("beta_Ms", "Ms"), ("beta_k", "k"), ("beta_c", "c"))
 
 def thermal_relative_changes(recording, values) -> dict:
     """{coefficient: relative change of its parameter at the record's largest fitted temperature rise},
-    ``-beta*max(theta)`` (X(T) = X*(1 - beta*theta))."""
+    ``-beta*max(theta)`` (X(T) = X*(1 - beta*theta), before the kernel's floors), keyed by the coefficient's
+    name (beta_Ms, beta_k, beta_c), the parameter a plausibility check names."""
     peak = float(np.max(temperature_rise_trace(recording, values)))
     return {name: -values.get(name, 0.0) * peak for name, _ in THERMAL_COEFFICIENTS}
 

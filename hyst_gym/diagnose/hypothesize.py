@@ -171,11 +171,13 @@ def _relative_box(model, values, effect):
 
     Why: thermal_drift's coefficients per kelvin are search ranges (the rise is inferred through a ~ T, small
     where a barely moves); the wall is |X(T)/X - 1| <= the limit, checked on the final fit's own rise
-    (:func:`.decide.check_plausibility`). A range of 1/K for all (tried) let the fit wander into a k(T)/c(T)
-    trade and tests/diagnose/test_time_variation.py's pinning records went ``unexplained``; a box of exactly the
-    wall at the first stage's rise pinned seed 2's second stage near 0 (its first stage overshoots the rise)."""
+    (:func:`.decide.check_plausibility`). Two alternatives were tried and set aside: a range of 1/K for every
+    record let the fit wander into a k(T)/c(T) trade, and tests/diagnose/test_time_variation.py's pinning records
+    went ``unexplained``; a box of exactly the wall at the first stage's rise pinned seed 2's second stage near 0
+    (its first stage overshoots the rise)."""
     params = dict(model.parameters)
     for name in effect.relative_changes(model.recording, values):
+        # the change is linear in its coefficient: its size at a coefficient of 1 is the change per unit
         per_unit = abs(effect.relative_changes(model.recording, dict(values, **{name: 1.0}))[name])
         p = params.get(name)
         if p is None or not p.free or per_unit <= 0.0:

@@ -91,3 +91,17 @@ def test_before_after_pairs_the_same_recordings_and_rescores_with_one_yardstick(
     assert table["right"] == [2, 3]            # before: none 2, eddy; after: input_map, none 1, none 2
     assert table["wrong_names"] == [0, 1]      # sensor_lag for eddy currents
     assert table["none_flagged"] == [1, 0] and table["none_n"] == 2 and table["changed"] == 3
+
+
+def test_a_subset_of_effects_and_its_before_after_heading(tmp_path):
+    """``--effects`` keeps only those effects' cases; a before/after table against rows other than the study's own
+    earlier file names that file, not issue 22."""
+    from experiments.diagnose_concealed import BEFORE, before_after_markdown
+
+    todo = cases(("own",), ("magnetization", "both"), 3, 100, effects=("thermal_drift", "none"))
+    assert {e for _, _, e, _, _ in todo} == {"thermal_drift", "none"} and len(todo) == 2 * 2 * 3
+    table = [{"group": "own/both", "n": 1, "right": [1, 1], "wrong_names": [0, 0], "none_flagged": [0, 0],
+              "none_n": 0, "changed": 0}]
+    assert "issue 22" in before_after_markdown(table, BEFORE)[1]
+    other = before_after_markdown(table, tmp_path / "concealed_study.csv")
+    assert "issue 22" not in "\n".join(other) and f"`{tmp_path / 'concealed_study.csv'}`" in other[3]
