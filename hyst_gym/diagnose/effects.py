@@ -267,10 +267,8 @@ def _mains_parameters(recording, structure, base_values):
 
 
 #: The knee exponent p of the family's Ising phase, tanh(|x|^p)^(1/p) (:func:`hyst_gym.physics.anhysteretic.knee_unit`):
-#: its physical range (from a knee softer than the Langevin curve's to one close to min(|x|, 1)), and the starts
-#: of its fit, in ln p (0: the Ising curve itself).
+#: its physical range, from a knee softer than the Langevin curve's to one close to min(|x|, 1).
 KNEE_EXPONENT_RANGE = (0.5, 4.0)
-KNEE_LOG_STARTS = (-0.5, 0.5, 1.0)
 
 
 def _curve_mixture_parameters(recording, structure, base_values):
@@ -372,14 +370,19 @@ def _input_dynamics_starts(model, start):
 
 
 def _curve_mixture_starts(model, start):
-    # halfway between the two curves at equal initial slope, and with a sharper second phase (a sharper knee);
-    # then the knee curve alone at the base curve's initial slope, from a softer and two sharper knees: the
-    # Ising phase is the second one (w = 1) under an Ising base, the first (w = 0) under a Langevin one
+    # halfway between the two curves at equal initial slope, and with a sharper second phase (a sharper knee)
     equal_slope = model.parameters["mix_a_ratio"].value
-    knee_alone = 1.0 if model.structure.anhysteretic == "ising" else 0.0
-    return [dict(start, mix_weight=0.5, mix_a_ratio=equal_slope),
-            dict(start, mix_weight=0.5, mix_a_ratio=0.3 * equal_slope)] + [
-        dict(start, mix_weight=knee_alone, mix_a_ratio=equal_slope, knee_log_p=log_p) for log_p in KNEE_LOG_STARTS]
+    return [dict(start, mix_weight=0.5, mix_a_ratio=equal_slope), dict(start, mix_weight=0.5,
+                                                                       mix_a_ratio=0.3 * equal_slope)]
+
+
+def knee_alone(model, start) -> dict:
+    """``start`` moved to the knee curve alone at the base curve's initial slope (``anhysteretic_shape``), at its
+    p = 1 member (ln p = 0): the base curve itself under an Ising base, the plain swap under a Langevin one. The
+    family's Ising phase is its second one (w = 1) under an Ising base and its first one (w = 0) under a Langevin
+    base. Whether a knee is fitted from there is the hypothesize stage's probe (:func:`.hypothesize.knee_starts`)."""
+    return dict(start, mix_weight=1.0 if model.structure.anhysteretic == "ising" else 0.0,
+                mix_a_ratio=model.parameters["mix_a_ratio"].value, knee_log_p=0.0)
 
 
 def _from_initial(model, start):
