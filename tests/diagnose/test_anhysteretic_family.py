@@ -90,6 +90,9 @@ def test_a_record_without_it_is_not_named():
     report = diagnose(make_recording_with_truth("none", 4, output="magnetization", n_samples=2000)[0], progress=False)
     assert report.verdict == "none", report.verdict
     assert effect("anhysteretic_shape").absent_at_zero == ("mix_weight",)
+    # no knee contends (hypothesize.knee_starts): the family is fitted without it, ln p held at 0
+    shape = next(c for c in report.candidates if c.effect == "anhysteretic_shape")
+    assert not shape.fit.model.parameters["knee_log_p"].free and shape.fit.values["knee_log_p"] == 0.0
 
 
 def test_the_report_plots_the_fitted_curve_against_the_textbook_laws():
@@ -176,6 +179,7 @@ def test_a_sharper_knee_is_named_with_its_exponent(seed):
         (report.verdict, tied)
     shape = next(c for c in report.candidates if c.effect == "anhysteretic_shape")
     values = shape.fit.values
+    assert shape.fit.model.parameters["knee_log_p"].free  # the knee contends (hypothesize.knee_starts)
     assert values["mix_weight"] > 0.95  # the knee curve alone, not a mixture with the Langevin phase
     assert np.exp(values["knee_log_p"]) == pytest.approx(2.5, abs=0.15)
     assert values["a"] * values["mix_a_ratio"] == pytest.approx(truth["a"], rel=0.1)
