@@ -13,7 +13,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .decide import ACCEPT_DELTA_BIC, ACCEPT_IMPROVEMENT
+from .decide import ACCEPT_DELTA_BIC, ACCEPT_IMPROVEMENT, MATERIAL_SHARE
 from .effects import (EFFECT_PARAMETERS, EVEN_LAW_NAMES, EVEN_LAW_POWERS, SENSOR_DYNAMICS_NAMES, effect as registered,
                       effect_starts, knee_alone, lumped_mode_hz)
 from .fit import BASE_FIT_TOLERANCE, FitResult, Objective, Split, _solve_linear_outputs, global_search
@@ -255,17 +255,19 @@ def _other_curve_starts(split, base, effect, model):
 #: KNEE_PROBE_LOG_P (sharper; a softer knee's gradient takes it below 0 as well)...
 KNEE_PROBE_EVALUATIONS = 8
 KNEE_PROBE_LOG_P = 0.5
-#: ...and a knee contends where it brings the fitting block's sum of squares below this share of the base model's:
-#: a 10 % lower RMSE, half of what any candidate must remove held out (ACCEPT_IMPROVEMENT); any extra freedom
-#: lowers it a little.
-KNEE_CONTENDS_SSE = (1.0 - 0.5 * ACCEPT_IMPROVEMENT) ** 2
+#: ...where the base model leaves a material excess over the noise on the fitting block (its mean square, in noise
+#: units, above 1 + MATERIAL_SHARE: below it no candidate could be accepted, decide's argument for the bar); and a
+#: knee contends where the probe removes this share of that excess (any extra freedom removes a little of it; the
+#: share, not a fixed ratio of sums of squares, so that a base model within a few tenths of the noise level counts
+#: as a 20,000-sample rod record's misfit of 13 noise units does).
+KNEE_CONTENDS_SHARE = 0.25
 
 
 def knee_starts(split, model, start) -> list:
     """The knee curve's start worth a fit, or none: a short fit (:data:`KNEE_PROBE_EVALUATIONS`) of the knee curve
     alone (:func:`.effects.knee_alone`, ln p from :data:`KNEE_PROBE_LOG_P`) with the hysteresis, the knee and
     the displacement's gain and bias free, the rest at the base model's values; its end where it predicts the
-    fitting block materially better than the base model (:data:`KNEE_CONTENDS_SSE`); none where it does not, and
+    fitting block materially better than the base model (:data:`KNEE_CONTENDS_SHARE`); none where it does not, and
     then the family is fitted without its knee (:func:`_other_curve_starts`).
 
     Why a fit, not the start's own score: a base model fitted to a sharper knee bends its feedback and its a to
@@ -281,8 +283,12 @@ def knee_starts(split, model, start) -> list:
                   model.max_field_step).with_values(reference)
     objective = Objective(probe, split.noise, split.fit_mask)
     base_residual = objective.residual_of(objective._simulated.predict(reference))
+    base_sse = float(base_residual @ base_residual)
+    excess = base_sse - base_residual.size  # above the noise: residuals in noise units have unit variance
+    if not excess > MATERIAL_SHARE * base_residual.size:
+        return []
     fitted = split.fit(probe, dict(reference, knee_log_p=KNEE_PROBE_LOG_P), max_nfev=KNEE_PROBE_EVALUATIONS)
-    return [fitted.values] if fitted.sse < KNEE_CONTENDS_SSE * float(base_residual @ base_residual) else []
+    return [fitted.values] if base_sse - fitted.sse >= KNEE_CONTENDS_SHARE * excess else []
 
 
 def _with_hysteresis_starts(split, base, effect, model):
