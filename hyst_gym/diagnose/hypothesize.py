@@ -266,9 +266,10 @@ KNEE_CONTENDS_SHARE = 0.25
 def knee_starts(split, model, start) -> list:
     """The knee curve's start worth a fit, or none: a short fit (:data:`KNEE_PROBE_EVALUATIONS`) of the knee curve
     alone (:func:`.effects.knee_alone`, ln p from :data:`KNEE_PROBE_LOG_P`) with the hysteresis, the knee and
-    the displacement's gain and bias free, the rest at the base model's values; its end where it predicts the
-    fitting block materially better than the base model (:data:`KNEE_CONTENDS_SHARE`); none where it does not, and
-    then the family is fitted without its knee (:func:`_other_curve_starts`).
+    the displacement's gain and bias free (on the magnetization alone where it is recorded), the rest at the base
+    model's values; its end where it predicts the fitting block materially better than the base model
+    (:data:`KNEE_CONTENDS_SHARE`); none where it does not, and then the family is fitted without its knee
+    (:func:`_other_curve_starts`).
 
     Why a fit, not the start's own score: a base model fitted to a sharper knee bends its feedback and its a to
     imitate it (rho -1.07 and a third of the true a on a p = 2.5 record), and a knee added there sharpens it twice;
@@ -277,10 +278,14 @@ def knee_starts(split, model, start) -> list:
     rod record that has no knee (19.4 s before, the target 20 s), short fits of the whole model from three
     exponents 4.4 CPU s."""
     reference = knee_alone(model, start)
-    probed = set(HYSTERESIS_NAMES) | {"knee_log_p"} | set(_linear_pair(model))
+    # the magnetization alone where it is recorded: the knee shapes M(H), and a displacement the mechanics cannot
+    # follow (a missing rod mode) is no sign of a knee and costs the probe its mechanics
+    channels = ("magnetization",) if "magnetization" in model.channels else model.channels
+    probed = set(HYSTERESIS_NAMES) | {"knee_log_p"} | set(_linear_pair(model) if "displacement" in channels else ())
     probe = Model(model.recording, model.structure,
                   {n: (p if n in probed else replace(p, free=False)) for n, p in model.parameters.items()},
                   model.max_field_step).with_values(reference)
+    probe.channels = channels
     objective = Objective(probe, split.noise, split.fit_mask)
     base_residual = objective.residual_of(objective._simulated.predict(reference))
     base_sse = float(base_residual @ base_residual)
