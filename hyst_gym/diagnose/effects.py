@@ -290,12 +290,21 @@ def _mains_parameters(recording, structure, base_values):
     return out
 
 
+#: The knee exponent p of the family's Ising phase, tanh(|x|^p)^(1/p) (:func:`hyst_gym.physics.anhysteretic.knee_unit`):
+#: its physical range, from a knee softer than the Langevin curve's to one close to min(|x|, 1).
+KNEE_EXPONENT_RANGE = (0.5, 4.0)
+
+
 def _curve_mixture_parameters(recording, structure, base_values):
     # r starts where the second phase has the first one's initial slope Ms*slope_factor/a
     equal_slope = slope_factor(structure.anhysteretic) / slope_factor(structure.curve)
+    low, high = KNEE_EXPONENT_RANGE
     return {"mix_weight": Parameter("mix_weight", 0.0, 0.0, 1.0, "1 (share of the base curve's phase)", scale=0.1),
             "mix_a_ratio": Parameter("mix_a_ratio", equal_slope, 0.02 * equal_slope, 50.0 * equal_slope,
-                                     "1 (its a over the first phase's a)", log=True)}
+                                     "1 (its a over the first phase's a)", log=True),
+            # ln p, fitted linearly: 0 (p = 1, today's curves) is inside the range, not at a wall
+            "knee_log_p": Parameter("knee_log_p", 0.0, float(np.log(low)), float(np.log(high)),
+                                    "1 (ln of the Ising phase's knee exponent p)", scale=0.1)}
 
 
 def _small_loop_parameters(recording, structure, base_values):
@@ -389,6 +398,15 @@ def _curve_mixture_starts(model, start):
     equal_slope = model.parameters["mix_a_ratio"].value
     return [dict(start, mix_weight=0.5, mix_a_ratio=equal_slope), dict(start, mix_weight=0.5,
                                                                        mix_a_ratio=0.3 * equal_slope)]
+
+
+def knee_alone(model, start) -> dict:
+    """``start`` moved to the knee curve alone at the base curve's initial slope (``anhysteretic_shape``), at its
+    p = 1 member (ln p = 0): the base curve itself under an Ising base, the plain swap under a Langevin one. The
+    family's Ising phase is its second one (w = 1) under an Ising base and its first one (w = 0) under a Langevin
+    base. Whether a knee is fitted from there is the hypothesize stage's probe (:func:`.hypothesize.knee_starts`)."""
+    return dict(start, mix_weight=1.0 if model.structure.anhysteretic == "ising" else 0.0,
+                mix_a_ratio=model.parameters["mix_a_ratio"].value, knee_log_p=0.0)
 
 
 def _from_initial(model, start):
@@ -702,13 +720,14 @@ _REGISTERED = (
     Effect(
         name="anhysteretic_shape", slot="anhysteretic curve",
         words="another anhysteretic curve: the other one (Ising (2) <-> Langevin (3)), or a mixture of the two with "
-              "its own shape parameter (a Brillouin-like curve, a sharper or softer knee; plotted in "
-              "anhysteretic.png)",
-        parameter_names=("mix_weight", "mix_a_ratio"), parameters=_curve_mixture_parameters,
+              "its own shape parameter (a Brillouin-like curve), or an Ising curve with a sharper or softer knee "
+              "tanh(|x|^p)^(1/p) (plotted in anhysteretic.png)",
+        parameter_names=("mix_weight", "mix_a_ratio", "knee_log_p"), parameters=_curve_mixture_parameters,
         identified_by=WhenPresent("mix_weight", "the plain swap adds no parameter"), applies=_always,
         rate_dependent=False, rescue=None, strategy="other_curve", swaps_curve=True, starts=_curve_mixture_starts,
-        # no second phase (0) is the plain swap, a member of the family
-        search_ranges=("mix_a_ratio",), absent_at_zero=("mix_weight",),
+        # no second phase (0) is the plain swap, a member of the family; and neither bound of w is a wall: w = 1
+        # is the base curve's phase alone, with its own a and knee (under an Ising base the knee curve itself)
+        search_ranges=("mix_a_ratio", "mix_weight"), absent_at_zero=("mix_weight",),
         confusable={"delta_e": {"displacement": _RECORD_M}}),
     Effect(
         name="small_loop", slot="anhysteretic curve at low field (reversible susceptibility)",

@@ -13,6 +13,9 @@ parameter is zero:
   unconditionally stable (the denominator is >= 1 because chi >= 0);
 * ``small_loop``: the reversible low-field susceptibility chi_r of the physics layer's
   small-loop extension (:data:`hyst_gym.physics.hysteresis.SMALL_LOOP_EXTENSION`);
+* ``anhysteretic_shape``'s knee: the Ising curve (2) becomes the knee family of the physics layer,
+  ``tanh(|x|^p)^(1/p)`` (:func:`hyst_gym.physics.anhysteretic.knee_unit`), with its exponent p per member
+  (:data:`CURVE_COLUMNS`; p = 1 is the Ising curve itself);
 * ``thermal_drift``: a lumped coil temperature rise ``theta`` (K) obeys
   ``theta' = q*H^2 - theta/tau`` (Joule heating ~ I^2 ~ H^2, eq. (11)), integrated
   exactly with H^2 held at its step mean, and ``a(T) = a*(T_amb + theta)/T_amb`` (4)
@@ -33,7 +36,10 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from numba.core import types
+from numba.extending import overload
 
+from ..physics.anhysteretic import KneeCurve
 from ..physics.constants import ROOM_TEMPERATURE
 from ..physics.hysteresis import (ISING, LaneConstants, _midpoint, _small_loop_slope, advance_one, lane_constants,
                                   magnetization_slope, monotone_substeps, simulate_shared, simulate_shared_small_loop)
@@ -51,7 +57,33 @@ MAGNETIC_COLUMNS = ("a", "k", "alpha", "Ms", "c", "H0", "k_e", "heating", "tau_t
 #: ``c(T) = c*(1 - beta_c*theta)`` (1/K each). A row without them (12 columns) has both zero: the plain heating
 #: law, so rows written before them keep their numbers.
 PINNING_DRIFT_COLUMNS = ("beta_k", "beta_c")
+#: Optional trailing column after :data:`PINNING_DRIFT_COLUMNS`: the knee exponent p of the Ising curve
+#: (dimensionless; 1, or no such column: the Ising curve itself, and the only value a Langevin row may have).
+#: Rows with another p run in :func:`simulate_lanes` only, which steps each lane with its own curve.
+CURVE_COLUMNS = ("knee_exponent",)
+KNEE_COLUMN = len(MAGNETIC_COLUMNS) + len(PINNING_DRIFT_COLUMNS)
 AMBIENT_TEMPERATURE = ROOM_TEMPERATURE  # K, reference temperature of the fitted a (eq. 4)
+
+
+def knee_exponents(params) -> np.ndarray:
+    """The knee exponent of each row of ``params`` (rows as :func:`simulate_lanes` takes them; 1 without the
+    column)."""
+    params = np.asarray(params)
+    return params[:, KNEE_COLUMN] if params.shape[1] > KNEE_COLUMN else np.ones(params.shape[0])
+
+
+def _lane_curve(curve, i):
+    """The curve argument of the physics kernels for lane ``i``: the code ``curve`` itself, or the
+    :data:`~hyst_gym.physics.anhysteretic.KneeCurve` of the lane's exponent where ``curve`` holds one per lane."""
+    return curve if isinstance(curve, int) else KneeCurve(curve[i])
+
+
+@overload(_lane_curve, jit_options={"forceinline": True})
+def _lane_curve_compiled(curve, i):
+    # resolved when compiled: the lanes' loop for a code holds no trace of the knee family
+    if isinstance(curve, types.Integer):
+        return lambda curve, i: curve
+    return lambda curve, i: KneeCurve(curve[i])
 
 
 @njit(cache=True, nogil=True)
@@ -74,6 +106,10 @@ def simulate_members(time, field, params, kind, max_field_step, ambient):
     """
     n_samples = time.shape[0]
     n_members = params.shape[0]
+    if params.shape[1] > KNEE_COLUMN:
+        for b in range(n_members):
+            if params[b, KNEE_COLUMN] != 1.0:
+                raise ValueError("a knee exponent other than 1 runs in simulate_lanes, not simulate_members")
     out = np.empty((n_samples, n_members))
     done = np.zeros(n_members, dtype=np.bool_)
     for b in range(n_members):
@@ -130,7 +166,8 @@ def lane_passes(count: int) -> int:
 def simulate_lanes(time, fields, field_index, params, h_ref, kind, max_field_step, ambient):
     """Magnetization (A/m), shape ``(T, B)``, of ``B`` extended models, each under its own field, in one
     pass: lane ``b`` sees ``fields[field_index[b]] + H0`` (``fields`` shape ``(F, T)``; ``h_ref[f]`` the RMS
-    of field ``f``, the heating drive's reference). ``params`` as :func:`simulate_members`.
+    of field ``f``, the heating drive's reference). ``params`` as :func:`simulate_members`, and a row may carry
+    a knee exponent (:data:`CURVE_COLUMNS`; ``kind`` ISING then).
 
     Why: a bank of members that share one field (:func:`simulate_members`) costs one pass, but a member with
     its own field (another input map or bias), eddy currents or heating cost a pass each. Here every lane
@@ -164,6 +201,7 @@ def simulate_lanes(time, fields, field_index, params, h_ref, kind, max_field_ste
     m_old = np.zeros(width)
     chi_r = np.empty(width)
     small_loop = False
+    knee, kneed = _lane_knees(params, row_of)
     for i in range(width):
         chi_r[i] = params[row_of[i], 10]
         small_loop = small_loop or chi_r[i] != 0.0
@@ -176,7 +214,9 @@ def simulate_lanes(time, fields, field_index, params, h_ref, kind, max_field_ste
         target = fields[field_index[row_of[i]], 0] + row[5]
         _plan(i, 0.0, target, material, row[2], max_field_step, plan)
         he[i] = target
-    _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind)
+    if kneed and kind != ISING:
+        raise ValueError("the knee family generalizes the Ising curve: kind must be ISING")
+    _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind, knee, kneed)
     for i in range(n_members):
         out[0, i] = m[i]
     for t in range(1, n_samples):
@@ -194,14 +234,14 @@ def simulate_lanes(time, fields, field_index, params, h_ref, kind, max_field_ste
                 eddy = True
                 gap[i] = target - he[i]
                 direction = 1.0 if gap[i] > 0.0 else -1.0
-                chi = magnetization_slope(he[i], m[i], direction, a[i], k[i], row[2], Ms[i], c[i], kind)
+                chi = _lane_slope(he[i], m[i], direction, a[i], k[i], row[2], Ms[i], c[i], kind, knee[i], kneed)
                 d_he[i] = gap[i] / (1.0 + k_e * chi / dt)
                 target = he[i] + d_he[i]
             _plan(i, he[i], target, material, row[2], max_field_step, plan)
-        _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind)
+        _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind, knee, kneed)
         if eddy:
             _correct(m, m_old, he, gap, d_he, dt, material, params, row_of, max_field_step, plan)
-            _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind)
+            _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind, knee, kneed)
         for i in range(width):
             row = params[row_of[i]]
             if row[6] > 0.0:
@@ -211,6 +251,24 @@ def simulate_lanes(time, fields, field_index, params, h_ref, kind, max_field_ste
         for i in range(n_members):
             out[t, i] = m[i]
     return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _lane_knees(params, row_of):
+    """Per lane, its knee exponent (:data:`CURVE_COLUMNS`, 1 without the column), and whether any is not 1."""
+    knee = np.ones(row_of.shape[0])
+    if params.shape[1] > KNEE_COLUMN:
+        for i in range(row_of.shape[0]):
+            knee[i] = params[row_of[i], KNEE_COLUMN]
+    return knee, bool(np.any(knee != 1.0))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _lane_slope(field, magnetization, direction, a, k, alpha, Ms, c, kind, knee, kneed):
+    """dM/dH of (6) for one lane, on the curve ``kind`` or, where ``kneed``, the knee family of exponent ``knee``."""
+    if kneed:
+        return magnetization_slope(field, magnetization, direction, a, k, alpha, Ms, c, KneeCurve(knee))
+    return magnetization_slope(field, magnetization, direction, a, k, alpha, Ms, c, kind)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -272,14 +330,20 @@ def _heat(i, row, field_from, field_to, h_ref, dt, ambient, theta, a, k, Ms, c):
 
 
 @njit(cache=True, nogil=True, inline="always", error_model="numpy")
-def _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind):
-    """The planned substeps of every lane: substeps outer, lanes inner (a lane with fewer keeps its M)."""
+def _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind, knee, kneed):
+    """The planned substeps of every lane: substeps outer, lanes inner (a lane with fewer keeps its M).
+    ``kneed``: the lanes step the knee family with their exponents ``knee`` (in place of ``kind``)."""
     most = 0
     for i in range(m.shape[0]):
         most = max(most, count[i])
     # one copy of the loop per curve and slope, as in the physics layer's bank: behind the tests the compiler
     # knows both and keeps the lanes' loop free of branches
-    if small_loop:
+    if kneed:
+        if small_loop:
+            _small_loop_substeps(m, start, step, delta, count, constants, chi_r, knee, most)
+        else:
+            _masked_substeps(m, start, step, delta, count, constants, knee, most)
+    elif small_loop:
         if kind == ISING:
             _small_loop_substeps(m, start, step, delta, count, constants, chi_r, kind, most)
         else:
@@ -292,12 +356,13 @@ def _substeps(m, start, step, delta, count, constants, chi_r, small_loop, kind):
 
 @njit(cache=True, nogil=True, inline="always", error_model="numpy")
 def _masked_substeps(m, start, step, delta, count, constants, kind, most):
+    """Every lane's substeps of (6); ``kind`` a curve's code, or the knee exponents of the lanes."""
     alpha, inv_a, Ms, ms_over_a = constants[0], constants[1], constants[2], constants[3]
     k_delta, alphahat, c, alpha_c = constants[4], constants[5], constants[6], constants[7]
     for s in range(most):
         for i in range(m.shape[0]):
             lane = LaneConstants(alpha[i], inv_a[i], Ms[i], ms_over_a[i], k_delta[i], alphahat[i], c[i], alpha_c[i])
-            new = _midpoint(start[i] + s * step[i], m[i], step[i], delta[i], lane, kind)
+            new = _midpoint(start[i] + s * step[i], m[i], step[i], delta[i], lane, _lane_curve(kind, i))
             m[i] = new if s < count[i] else m[i]
 
 
@@ -310,9 +375,10 @@ def _small_loop_substeps(m, start, step, delta, count, constants, chi_r, kind, m
         for i in range(m.shape[0]):
             lane = LaneConstants(alpha[i], inv_a[i], Ms[i], ms_over_a[i], k_delta[i], alphahat[i], c[i], alpha_c[i])
             field = start[i] + s * step[i]
-            slope_start = _small_loop_slope(field, m[i], delta[i], lane, chi_r[i], kind)
+            curve = _lane_curve(kind, i)
+            slope_start = _small_loop_slope(field, m[i], delta[i], lane, chi_r[i], curve)
             slope_mid = _small_loop_slope(field + 0.5 * step[i], m[i] + (0.5 * step[i]) * slope_start, delta[i], lane,
-                                          chi_r[i], kind)
+                                          chi_r[i], curve)
             new = m[i] + step[i] * slope_mid
             m[i] = new if s < count[i] else m[i]
 
@@ -553,9 +619,9 @@ def first_order_system(rate, gain):
     return np.array([[-rate]]), np.array([gain]), np.array([1.0])
 
 
-__all__ = ["AMBIENT_TEMPERATURE", "MAGNETIC_COLUMNS", "PINNING_DRIFT_COLUMNS", "first_order_system",
-           "heating_reference", "lane_passes", "lti_response", "member_passes", "second_order_system",
-           "simulate_lanes", "simulate_members", "step_classes", "varying_stiffness_response"]
+__all__ = ["AMBIENT_TEMPERATURE", "CURVE_COLUMNS", "KNEE_COLUMN", "MAGNETIC_COLUMNS", "PINNING_DRIFT_COLUMNS",
+           "first_order_system", "heating_reference", "knee_exponents", "lane_passes", "lti_response", "member_passes",
+           "second_order_system", "simulate_lanes", "simulate_members", "step_classes", "varying_stiffness_response"]
 
 
 #: The compiled first-order-hold stepping loop, for models that build their own discretization.

@@ -53,7 +53,11 @@ the base model when those parameters vanish:
                                 the same k, c, Ms and rho, each phase with its own feedback on its
                                 own magnetization): w = 0 is the swap, w = 1 the
                                 base curve; between them Brillouin-like curves, and a sharper or
-                                softer knee (r < 1 or > 1)
+                                softer knee (r < 1 or > 1); and ``knee_log_p`` = ln p, the knee
+                                exponent of the family's Ising phase, ``tanh(|x|^p)^(1/p)``
+                                (p = 1: the Ising curve; unit slope at 0 for every p; p > 1 a
+                                sharper knee, p < 1 a softer one). With the Ising base, w = 1 and
+                                p != 1 is the knee curve alone
 ``input_map``                   ``input_quadratic``, ``input_cubic``, ``input_saturation``,
                                 ``input_saturation_negative``: the field is a static map of the
                                 recorded one, ``H = H_rec*(1 + q*u + c*u^2)/sqrt(1 + s*u^2)`` with
@@ -103,7 +107,8 @@ from .effects import (DRIFT_NAMES, EFFECTS, EVEN_LAW_NAMES, EVEN_LAW_POWERS, GAI
                       INPUT_MAP_NAMES, MAINS_MIN_CYCLES, MAINS_NAMES, PAPER_MS, SENSOR_MAP_NAMES, applicable_effects,
                       effect, extension_parameters, mapped_field)
 from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, PINNING_DRIFT_COLUMNS, first_order_system, lti_response,
-                      heating_reference, lane_passes, member_passes, second_order_system, simulate_lanes,
+                      heating_reference, knee_exponents, lane_passes, member_passes, second_order_system,
+                      simulate_lanes,
                       simulate_members, step_classes, step_lti,
                       varying_stiffness_response)
 from .parameter import Parameter, slope_factor
@@ -234,8 +239,11 @@ class Model:
                    k_e=values.get("k_e", 0.0), heating=values.get("heating", 0.0),
                    tau_th=values.get("tau_th", 1.0), beta_Ms=values.get("beta_Ms", 0.0),
                    chi_r=values.get("chi_r", 0.0), heating_exponent=values.get("heating_exponent", 2.0))
-        # the pinning's and the reversibility's time variation (thermal_drift): trailing columns the kernel reads
-        return np.array([row[c] for c in MAGNETIC_COLUMNS] + [values.get(n, 0.0) for n in PINNING_DRIFT_COLUMNS])
+        # the pinning's and the reversibility's time variation (thermal_drift), and the knee exponent of the Ising
+        # curve (anhysteretic_shape; a Langevin curve has none): trailing columns the kernel reads
+        knee = float(np.exp(values.get("knee_log_p", 0.0))) if curve == "ising" else 1.0
+        return np.array([row[c] for c in MAGNETIC_COLUMNS] + [values.get(n, 0.0) for n in PINNING_DRIFT_COLUMNS]
+                        + [knee])
 
     def magnetization(self, values_list) -> np.ndarray:
         """Simulated M (A/m) for each values dict: shape (T, len(values_list))."""
@@ -256,13 +264,15 @@ class Model:
         unique, inverse = np.unique(np.column_stack([map_of, rows]), axis=0, return_inverse=True)
         inverse = np.asarray(inverse).reshape(-1)
         members = np.ascontiguousarray(unique[:, 1:])
-        if len(fields) == 1 and member_passes(members) == 1 and (self.horizon is None or not np.any(members[:, 7])):
+        kneed = bool(np.any(knee_exponents(members) != 1.0))  # the knee family: lanes only
+        if (len(fields) == 1 and member_passes(members) == 1 and not kneed
+                and (self.horizon is None or not np.any(members[:, 7]))):
             # one bank under one field (the physics layer's bank kernel)
             simulated = simulate_members(time, np.ascontiguousarray(fields[0]), members, kind, self.max_field_step,
                                          AMBIENT_TEMPERATURE)
         else:
-            # members under several fields, or with eddy currents or heating: one pass of lanes, each its own
-            # field and substeps, with the same numbers as alone (kernels.simulate_lanes)
+            # members under several fields, with eddy currents or heating, or on the knee family: one pass of
+            # lanes, each its own field, substeps and curve, with the same numbers as alone (kernels.simulate_lanes)
             field_rows = np.ascontiguousarray(np.array(fields, dtype=np.float64).reshape(len(fields), -1))
             simulated = simulate_lanes(time, field_rows, np.ascontiguousarray(unique[:, 0].astype(np.int64)),
                                        members, references, kind,
@@ -279,7 +289,7 @@ class Model:
         shapes, map_of = np.unique(maps, axis=0, return_inverse=True)
         unique = np.unique(np.column_stack([np.asarray(map_of).reshape(-1), rows]), axis=0)
         passes = member_passes(unique[:, 1:])
-        if len(shapes) > 1 or passes > 1:
+        if len(shapes) > 1 or passes > 1 or np.any(knee_exponents(unique[:, 1:]) != 1.0):
             passes = lane_passes(unique.shape[0])
         mixed = [v for v in values_list if v.get("mix_weight", 0.0) != 0.0]
         if mixed:

@@ -23,7 +23,7 @@ UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "heating_exponen
          "tau_m": "s", "tau_x": "s", "tau2_m": "s", "tau2_x": "s", "tau2_in": "s", "zeta_q": "m/s^2 per (A/m)^2",
          "zeta_4": "m/s^2 per A/m", "f2": "Hz", "damping2": "", "g2": "",
          "delta_e": "", "delta_e_linear": "", "delta_e_quartic": "",
-         "chi_r": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "", "alpha": "",
+         "chi_r": "", "knee_log_p": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "", "alpha": "",
          "Y": "Pa", "ML": "kg", "cD": "Pa s", "cL": "N s/m", "khat": "1/s^2", "chat": "1/s"}
 
 
@@ -118,17 +118,26 @@ def slot_shapes(fit) -> list:
 
 
 def _anhysteretic_shape(fit):
-    """The fitted anhysteretic curve (the family's mixture) against the two textbook curves (2), (3) at the
-    fitted one's initial slope, over the effective field in units of its a."""
+    """The fitted anhysteretic curve (the family's mixture, its Ising phase with the fitted knee exponent) against
+    the two textbook curves (2), (3) at the initial slope of the phase that weighs more, over six of its widths."""
     values, structure = fit.values, fit.model.structure
     a, weight = values["a"], values.get("mix_weight", 0.0)
-    h = np.linspace(-6.0 * a, 6.0 * a, 241)
-    swapped = anhysteretic_magnetization(h, a, 1.0, structure.curve)[0]
-    base_a = a * slope_factor(structure.anhysteretic) / slope_factor(structure.curve)
-    base = anhysteretic_magnetization(h, base_a, 1.0, structure.anhysteretic)[0]
-    second = anhysteretic_magnetization(h, a * values.get("mix_a_ratio", 1.0), 1.0, structure.anhysteretic)[0]
+    knee = float(np.exp(values.get("knee_log_p", 0.0)))  # the Ising phase's knee exponent (Model.magnetic_row)
+
+    def phase(a_phase, curve):
+        return anhysteretic_magnetization(h, a_phase, 1.0, curve, knee_exponent=knee if curve == "ising" else 1.0)[0]
+
+    # the textbook curves at the initial slope of the phase that weighs more (under an Ising base, w = 1 is the
+    # knee curve alone, whose a is a*r), over six of its widths
+    ratio = slope_factor(structure.anhysteretic) / slope_factor(structure.curve)
+    swapped_a = a if weight <= 0.5 else a * values.get("mix_a_ratio", 1.0) / ratio
+    h = np.linspace(-6.0 * swapped_a, 6.0 * swapped_a, 241)
+    swapped = anhysteretic_magnetization(h, swapped_a, 1.0, structure.curve)[0]
+    base = anhysteretic_magnetization(h, swapped_a * ratio, 1.0, structure.anhysteretic)[0]
+    fitted = ((1.0 - weight) * phase(a, structure.curve)
+              + weight * phase(a * values.get("mix_a_ratio", 1.0), structure.anhysteretic))
     return ("anhysteretic", "Anhysteretic curve: fitted family against the textbook laws", "H_eff (A/m)",
-            "Man / Ms", [("fitted", h, (1.0 - weight) * swapped + weight * second),
+            "Man / Ms", [(f"fitted (knee exponent p = {knee:.3g})" if knee != 1.0 else "fitted", h, fitted),
                          (f"{structure.curve} (textbook)", h, swapped),
                          (f"{structure.anhysteretic} (textbook, same initial slope)", h, base)])
 

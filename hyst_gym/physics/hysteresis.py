@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .anhysteretic import ISING, LANGEVIN, anhysteretic_kind, anhysteretic_unit
+from .anhysteretic import ISING, LANGEVIN, anhysteretic_curve_unit, anhysteretic_kind
 
 #: Default largest field substep in A/m. Chosen from the convergence study in
 #: ``tests/physics/test_hysteresis.py`` (major loop to +-1.2e5 A/m, then nested minor
@@ -278,7 +278,7 @@ def lane_constants(a, k, alpha, Ms, c, delta):
 def _slope_terms(field, magnetization, delta, lane, kind):
     """The two terms of (6): the irreversible ``dhat*(Man - M)/(k*delta - alphahat*(Man - M))``
     and ``Man'`` (both per A/m of H), from a model's :data:`LaneConstants`."""
-    unit, unit_slope = anhysteretic_unit((field + lane.alpha * magnetization) * lane.inv_a, kind)
+    unit, unit_slope = anhysteretic_curve_unit((field + lane.alpha * magnetization) * lane.inv_a, kind)
     man_slope = lane.ms_over_a * unit_slope
     gap = lane.Ms * unit - magnetization
     denominator = lane.k_delta - lane.alphahat * gap

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from hyst_gym.diagnose import Recording, diagnose
-from hyst_gym.diagnose.kernels import AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, PINNING_DRIFT_COLUMNS, simulate_members
+from hyst_gym.diagnose.kernels import (AMBIENT_TEMPERATURE, KNEE_COLUMN, MAGNETIC_COLUMNS, PINNING_DRIFT_COLUMNS,
+                                       simulate_members)
 from hyst_gym.diagnose.make_recording import make_recording_with_truth
 from hyst_gym.diagnose.model import Model, Structure, base_parameters, extension_parameters
 from hyst_gym.physics.hysteresis import advance_one
@@ -34,7 +35,7 @@ def test_todays_thermal_law_is_the_member_at_zero():
     values = {n: p.value for n, p in base.items()}
     model = Model(recording, structure, {**base, **extension_parameters(recording, structure, values)}, 200.0)
     row = model.magnetic_row(dict(model.values(), beta_k=0.01, beta_c=-0.004))
-    assert list(row[len(MAGNETIC_COLUMNS):]) == [0.01, -0.004]
+    assert list(row[len(MAGNETIC_COLUMNS):KNEE_COLUMN]) == [0.01, -0.004]
 
 
 def _independent(time, field, beta_k, beta_c):
