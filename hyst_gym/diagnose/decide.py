@@ -447,8 +447,10 @@ def _none_or_structure(base_heldout, best_improvement, mechanics_pinned, base_st
         lo, hi = base_structure["ci95"]
         notes.append(f"the base model is within {base_heldout:.2f} noise units of the held-out block, but "
                      f"{100 * base_structure['share']:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}] of the noise power "
-                     "in its "
-                     f"residual is structured (material from {100 * MATERIAL_SHARE:.0f} %): the model leaves out "
+                     "in its residual is structured"
+                     + (" between moments of the same drive state" if base_structure.get("method") == "drive-paired"
+                        else "")
+                     + f" (material from {100 * MATERIAL_SHARE:.0f} %): the model leaves out "
                      "something that no candidate explains")
         margin = (base_structure["share"] - MATERIAL_SHARE) / MATERIAL_SHARE
         return Decision("unexplained", NONE_CONFIDENCE_CEILING * float(np.clip(margin, 0.0, 1.0)), notes=notes)
