@@ -186,18 +186,52 @@ def drive_state(field, time) -> np.ndarray:
 
 def partner_products(residual, state, horizon: int = NOISE_HORIZON, partners: int = STATE_PARTNERS):
     """Per sample t, the mean of r_t r_u over its ``partners`` nearest samples u in drive state (Euclidean in
-    ``state``) with |t - u| >= ``horizon``; and the horizon used (at most an eighth of the record)."""
-    r = np.asarray(residual, dtype=float)
-    n = r.size
+    ``state``) with |t - u| >= ``horizon``; and the horizon used (at most an eighth of the record).
+    :func:`partner_means` gives the mean of those r_u."""
+    means, horizon = partner_means(residual, state, horizon, partners)
+    return np.asarray(residual, dtype=float) * means, horizon
+
+
+def partner_indices(state, horizon: int = NOISE_HORIZON, partners: int = STATE_PARTNERS):
+    """Per sample t, the indices of its ``partners`` nearest samples u in drive state (Euclidean in ``state``)
+    with |t - u| >= ``horizon`` (an (n, partners) array), and the horizon used (at most an eighth of the
+    record)."""
+    state = np.asarray(state, dtype=float)
+    n = state.shape[0]
     horizon = int(max(1, min(horizon, n // 8)))
     # the 2*horizon - 1 samples nearer than the horizon in time may all be nearest in state: asking for that
     # many more neighbours always leaves `partners` outside the horizon
     k = min(n, 2 * horizon - 1 + partners)
-    _, idx = cKDTree(np.asarray(state, dtype=float)).query(state, k=k)
+    _, idx = cKDTree(state).query(state, k=k)
     allowed = np.abs(idx - np.arange(n)[:, None]) >= horizon
-    chosen = allowed & (np.cumsum(allowed, axis=1) <= partners)
-    count = np.maximum(chosen.sum(axis=1), 1)
-    return r * (np.where(chosen, r[idx], 0.0).sum(axis=1) / count), horizon
+    # stable sort: the allowed neighbours first, nearest first
+    order = np.argsort(~allowed, axis=1, kind="stable")[:, :partners]
+    return np.take_along_axis(idx, order, axis=1), horizon
+
+
+def partner_means(residual, state, horizon: int = NOISE_HORIZON, partners: int = STATE_PARTNERS):
+    """Per sample t, the mean of r_u over its partners (:func:`partner_indices`): the part of r_t that follows the
+    drive, as far as the other visits of its state tell it; and the horizon used."""
+    idx, horizon = partner_indices(state, horizon, partners)
+    return np.asarray(residual, dtype=float)[idx].mean(axis=1), horizon
+
+
+def _rest_correlation(rest, idx, lags, within) -> float:
+    """RMS over ``lags`` of the autocovariance of ``rest`` (= r less its partners' mean), leaving out the pairs
+    of samples whose partners lie ``within`` samples of the other sample or of its partners: their noise is
+    shared by construction. (On a slow drive, whose partners are the samples just beyond the horizon, that is
+    every pair: there a hum or a drift is coherent between partners and reads as structure anyway.)"""
+    n = rest.size
+    values = []
+    for k in lags:
+        t = np.arange(n - k)
+        u = t + k
+        near = ((np.abs(idx[t] - u[:, None]) < within).any(axis=1)
+                | (np.abs(idx[u] - t[:, None]) < within).any(axis=1)
+                | (np.abs(idx[t][:, :, None] - idx[u][:, None, :]) < within).any(axis=(1, 2)))
+        if np.count_nonzero(~near) > 0:
+            values.append(float(np.mean(rest[t[~near]] * rest[u[~near]])))
+    return float(np.sqrt(np.mean(np.square(values)))) if values else 0.0
 
 
 def drive_paired_power(residuals, state, horizon: int = NOISE_HORIZON, bootstrap: int = STRUCTURE_BOOTSTRAP,
@@ -242,8 +276,9 @@ def noise_colour(residual, state, horizon: int = NOISE_HORIZON) -> dict:
     ringing), and ``correlation_samples``, the lag at which the rest's autocovariance falls to 1/e of its value at
     lag 1 (None when it is not correlated at lag 1)."""
     r = np.asarray(residual, dtype=float)
-    products, used = partner_products(r, state, horizon)
-    structured = float(products.mean())
+    idx, used = partner_indices(state, horizon)
+    means = r[idx].mean(axis=1)
+    structured = float(np.mean(r * means))
     noise = float(np.mean(r * r)) - structured
     short = structured_power(r, bootstrap=0)["share"]
     paired = structured / max(noise, 0.01 * float(np.mean(r * r)), 1e-300)
@@ -253,11 +288,13 @@ def noise_colour(residual, state, horizon: int = NOISE_HORIZON) -> dict:
         longest = min(r.size // 4, 8 * used)
         correlation = next((k - 1 for k in range(2, longest + 1)
                             if float(np.mean(r[:-k] * r[k:])) - structured < first / np.e), longest)
-    # what does not follow the drive must have decorrelated by the horizon (the assumption itself): a hum or a
-    # drift stays correlated there, and is no sensor noise
-    beyond = float(np.mean([np.mean(r[:-k] * r[k:]) for k in range(used, 2 * used + 1)])) - structured
-    beyond_share = beyond / max(noise, 0.01 * float(np.mean(r * r)), 1e-300)
-    return {"coloured": bool(short - paired >= COLOURED_EXCESS and beyond_share < COLOURED_EXCESS),
+    # what does not follow the drive (the residual less its partners' mean) must have decorrelated by the horizon,
+    # the assumption itself: a hum or a drift stays correlated there, and is no sensor noise (RMS over the lags:
+    # a hum's covariance changes sign)
+    rest = r - means
+    beyond = _rest_correlation(rest, idx, range(used, 2 * used + 1), used)
+    beyond_share = beyond / max(float(np.mean(rest * rest)), 1e-300)
+    return {"coloured": bool(short - paired >= COLOURED_EXCESS and beyond_share < MATERIAL_SHARE),
             "short_lag_share": float(short), "drive_paired_share": float(paired), "beyond_horizon_share": beyond_share,
             "power_ratio": noise, "correlation_samples": correlation, "horizon_samples": int(used)}
 
