@@ -5,6 +5,12 @@ whole recording. Significance levels assume independent samples; a residual that
 not white makes them optimistic, which is why they only rank places, never decide the
 verdict on their own (the decision is by held-out error, :mod:`hyst_gym.diagnose.decide`).
 :func:`locate_mismatch` gathers them for the base fit.
+
+The structured share that decides materiality (:func:`residual_structure`) is an effect size, not a
+significance level. Where a channel's noise is white it is read at lags 1-3 (:func:`structured_power`);
+where the noise is coloured (:func:`noise_colour`) it is read between moments of the same drive state at
+least ``NOISE_HORIZON`` samples apart (:func:`drive_paired_power`), on the assumption that the sensor noise
+decorrelates within that horizon while a model error follows the drive (:mod:`.decide`, "Coloured noise").
 """
 
 from __future__ import annotations

@@ -4,8 +4,10 @@
 
 The recording is split in time (:class:`~.fit.Split`): the first ``1 - holdout`` of the samples
 fit every model, the last ``holdout`` (a contiguous block) is only predicted. Errors are in noise
-units (each channel's residual divided by its noise level, estimated from second differences), so
-a model that explains the data to within noise has a held-out RMSE near 1. The decision rule, the
+units (each channel's residual divided by its noise level, estimated from second differences, which
+see the white part of the noise), so a model that explains the data to within white noise has a
+held-out RMSE near 1; coloured noise is found and handled in the materiality check (:mod:`.decide`,
+"Coloured noise"), and a note reports it. The decision rule, the
 plausibility checks and the meaning of ``confidence`` are in :mod:`.decide`.
 """
 
