@@ -125,3 +125,24 @@ def test_the_report_says_what_it_found_and_did():
     decision = decide([], 1.2, ("magnetization",), base_structure=material)
     assert decision.verdict == "unexplained"
     assert "between moments of the same drive state" in decision.notes[-1]
+
+
+@pytest.mark.slow
+def test_coloured_noise_alone_gives_none_with_the_note():
+    """End to end: a recording of the base physics (the own generator, no effect) with a low-passed noise of
+    0.8 times the white noise's RMS added to its magnetization is `none`, and the report's notes say the
+    noise was found coloured and what was done."""
+    from dataclasses import replace
+
+    from hyst_gym.diagnose import diagnose
+    from hyst_gym.diagnose.make_recording import make_recording_with_truth
+
+    recording, _, truth = make_recording_with_truth("none", 3, output="magnetization", n_samples=4000)
+    sigma = truth["noise_rel"] * float(np.ptp(recording.magnetization))
+    b, a = signal.butter(4, 2 * 0.02)
+    part = signal.lfilter(b, a, np.random.default_rng(4).standard_normal(recording.size + 500))[500:]
+    coloured = replace(recording, magnetization=recording.magnetization + 0.8 * sigma * part / np.std(part))
+    report = diagnose(coloured, progress=False)
+    assert report.verdict == "none", report.notes
+    assert report.material_structure["coloured_channels"] == ["magnetization"]
+    assert any(note.startswith("the noise is coloured on 'magnetization'") for note in report.notes), report.notes
