@@ -222,24 +222,6 @@ def partner_means(residual, state, horizon: int = NOISE_HORIZON, partners: int =
     return np.asarray(residual, dtype=float)[idx].mean(axis=1), horizon
 
 
-def _rest_correlation(rest, idx, lags, within) -> float:
-    """RMS over ``lags`` of the autocovariance of ``rest`` (= r less its partners' mean), leaving out the pairs
-    of samples whose partners lie ``within`` samples of the other sample or of its partners: their noise is
-    shared by construction. (On a slow drive, whose partners are the samples just beyond the horizon, that is
-    every pair: there a hum or a drift is coherent between partners and reads as structure anyway.)"""
-    n = rest.size
-    values = []
-    for k in lags:
-        t = np.arange(n - k)
-        u = t + k
-        near = ((np.abs(idx[t] - u[:, None]) < within).any(axis=1)
-                | (np.abs(idx[u] - t[:, None]) < within).any(axis=1)
-                | (np.abs(idx[t][:, :, None] - idx[u][:, None, :]) < within).any(axis=(1, 2)))
-        if np.count_nonzero(~near) > 0:
-            values.append(float(np.mean(rest[t[~near]] * rest[u[~near]])))
-    return float(np.sqrt(np.mean(np.square(values)))) if values else 0.0
-
-
 def drive_paired_power(residuals, state, horizon: int = NOISE_HORIZON, bootstrap: int = STRUCTURE_BOOTSTRAP,
                        seed: int = 0) -> dict:
     """The structured part of a residual as a share of its noise part, for white *or coloured* noise.
@@ -282,8 +264,7 @@ def noise_colour(residual, state, horizon: int = NOISE_HORIZON) -> dict:
     ringing), and ``correlation_samples``, the lag at which the rest's autocovariance falls to 1/e of its value at
     lag 1 (None when it is not correlated at lag 1)."""
     r = np.asarray(residual, dtype=float)
-    idx, used = partner_indices(state, horizon)
-    means = r[idx].mean(axis=1)
+    means, used = partner_means(r, state, horizon)
     structured = float(np.mean(r * means))
     noise = float(np.mean(r * r)) - structured
     short = structured_power(r, bootstrap=0)["share"]
@@ -294,13 +275,13 @@ def noise_colour(residual, state, horizon: int = NOISE_HORIZON) -> dict:
         longest = min(r.size // 4, 8 * used)
         correlation = next((k - 1 for k in range(2, longest + 1)
                             if float(np.mean(r[:-k] * r[k:])) - structured < first / np.e), longest)
-    # what does not follow the drive (the residual less its partners' mean) must have decorrelated by the horizon,
-    # the assumption itself: a hum or a drift stays correlated there, and is no sensor noise (RMS over the lags:
-    # a hum's covariance changes sign)
-    rest = r - means
-    beyond = _rest_correlation(rest, idx, range(used, 2 * used + 1), used)
-    beyond_share = beyond / max(float(np.mean(rest * rest)), 1e-300)
-    return {"coloured": bool(short - paired >= COLOURED_EXCESS and beyond_share < MATERIAL_SHARE),
+    # what does not follow the drive must have decorrelated by the horizon, the assumption itself: the residual's
+    # autocovariance at lags horizon..2*horizon, less the structure, RMS over the lags (a hum's changes sign), stays
+    # below COLOURED_EXCESS of the noise power. A hum or a drift stays correlated there and is no sensor noise; so
+    # does a model error on a drive that changes within the horizon, and the channel is then read at lags 1-3.
+    beyond = float(np.sqrt(np.mean([(np.mean(r[:-k] * r[k:]) - structured) ** 2 for k in range(used, 2 * used + 1)])))
+    beyond_share = beyond / max(noise, 0.01 * float(np.mean(r * r)), 1e-300)
+    return {"coloured": bool(short - paired >= COLOURED_EXCESS and beyond_share < COLOURED_EXCESS),
             "short_lag_share": float(short), "drive_paired_share": float(paired), "beyond_horizon_share": beyond_share,
             "power_ratio": noise, "correlation_samples": correlation, "horizon_samples": int(used)}
 
