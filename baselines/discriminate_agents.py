@@ -10,6 +10,8 @@ explanations of a recording apart.
   limit, the one whose predicted outputs differ most between the candidates, weighted by the posterior
   (``sum over pairs p_i p_j (M_i - M_j)^2``); it only raises |H| while the coil, braked from there at the slew
   limit, would stay ``margin`` K below the temperature limit.
+* :class:`ClairvoyantSeparation` (reads the truth: a check of the information bound, not a benchmark agent): the
+  greedy rule weighing only the truth's pairs, each by the alternative's posterior.
 """
 
 from __future__ import annotations
@@ -123,6 +125,10 @@ class GreedySeparation(Agent):
             h = nxt
         return peak
 
+    def _pair_weights(self, posterior) -> dict:
+        """The weight of each pair's squared output gap: the product of their posteriors."""
+        return {(i, j): posterior[:, i] * posterior[:, j] for i in range(3) for j in range(i + 1, 3)}
+
     def act_batch(self, observations, episode_start):
         config = self.config
         n = observations.shape[0]
@@ -142,8 +148,8 @@ class GreedySeparation(Agent):
             models = self._m.copy()
             self._advance(models, self._field, target, a, self._models)
             m = models / config.hysteresis.Ms
-            score = sum(posterior[:, i] * posterior[:, j] * (m[:, i] - m[:, j]) ** 2 for i in range(3)
-                        for j in range(i + 1, 3))
+            weights = self._pair_weights(posterior)
+            score = sum(weights[(i, j)] * (m[:, i] - m[:, j]) ** 2 for i in range(3) for j in range(i + 1, 3))
             score = np.where(rising & hot, -np.inf, score)
             better = score > best_score + 1e-15
             best_score, best_field = np.where(better, score, best_score), np.where(better, target, best_field)
@@ -154,4 +160,21 @@ class GreedySeparation(Agent):
         return (best_field / config.field_limit)[:, None].astype(np.float32)
 
 
-__all__ = ["FieldSequence", "GreedySeparation", "replay_recording", "triangle"]
+class ClairvoyantSeparation(GreedySeparation):
+    """:class:`GreedySeparation` that reads the truth (not an admissible agent of the benchmark: a check of the
+    information bound, which holds for policies that know the truth too): it weighs only the truth's pairs, each
+    by the alternative's posterior, the terms of the truth's posterior. ``truth_of``: a callable returning the
+    truth per sub-env (e.g. ``lambda: env.truth``), settable after construction."""
+
+    def __init__(self, env, truth_of, margin: float = 1.0, name: str | None = None):
+        super().__init__(env, margin, name or f"clairvoyant_separation_{margin:g}")
+        self.reads_truth = True
+        self.truth_of = truth_of
+
+    def _pair_weights(self, posterior) -> dict:
+        truth = np.asarray(self.truth_of())
+        return {(i, j): np.where(truth == i, posterior[:, j], np.where(truth == j, posterior[:, i], 0.0))
+                for i in range(3) for j in range(i + 1, 3)}
+
+
+__all__ = ["ClairvoyantSeparation", "FieldSequence", "GreedySeparation", "replay_recording", "triangle"]

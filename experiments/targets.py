@@ -87,6 +87,39 @@ TARGETS = (
            "schedule's", "at_most", 0.5, "", "experiments/results/details.json", "python -m experiments.report"),
 )
 
+OTHER_FORMS = "experiments/results/diagnose/other_forms.json"
+OTHER_FORMS_COMMAND = "python -m experiments.diagnose_other_forms --seeds 5 --jobs 2 --page docs/results/diagnose.md"
+COLOURED = "experiments/results/diagnose/other_forms_coloured_none.json"
+COLOURED_COMMAND = ("python -m experiments.diagnose_other_forms --cases none_other_numerics --seeds 5 "
+                    "--noise coloured --jobs 2 --out experiments/results/diagnose/other_forms_coloured_none "
+                    "--page docs/results/diagnose.md")
+NEXT_DRIVE = "experiments/results/diagnose/next_drive.json"
+NEXT_DRIVE_COMMAND = "python -m experiments.diagnose_next_drive"
+
+#: The mismatch tool's accuracy on recordings whose forms and numerics the project did not write (the
+#: other-forms generator), per channel set: the worst channel set is the measurement.
+DIAGNOSE_TARGETS = (
+    Target("other_forms_right", "accuracy", "mismatch tool, physics in other forms (effect recordings): right "
+           "(the effect's slot), the worst channel set", "at_least", 90, "%", OTHER_FORMS, OTHER_FORMS_COMMAND),
+    Target("other_forms_right_or_tied", "accuracy", "mismatch tool, physics in other forms (effect recordings): "
+           "right, or `ambiguous` containing the truth, the worst channel set", "at_least", 97, "%",
+           OTHER_FORMS, OTHER_FORMS_COMMAND),
+    Target("other_forms_wrong_names", "accuracy", "mismatch tool, physics in other forms (effect recordings): "
+           "wrong single names, the worst channel set", "at_most", 3, "%", OTHER_FORMS, OTHER_FORMS_COMMAND),
+    Target("none_false_alarms_white", "accuracy", "mismatch tool: `none` false alarms, white noise (other "
+           "numerics), the worst channel set", "at_most", 5, "%", OTHER_FORMS, OTHER_FORMS_COMMAND),
+    Target("none_false_alarms_coloured", "accuracy", "mismatch tool: `none` false alarms, coloured noise, the worst "
+           "channel set", "at_most", 5, "%", COLOURED, COLOURED_COMMAND),
+    Target("confident_exactly_right", "accuracy", "mismatch tool, physics in other forms: verdicts at confidence "
+           "≥ 0.8 exactly right", "at_least", 90, "%", OTHER_FORMS, OTHER_FORMS_COMMAND),
+    Target("next_drive_right", "accuracy", "mismatch tool, one designed follow-up: right, the worst channel set "
+           "(three generators)", "at_least", 95, "%", NEXT_DRIVE, NEXT_DRIVE_COMMAND),
+    Target("next_drive_beats_control", "accuracy", "mismatch tool: designed follow-up minus control follow-up, "
+           "right verdicts, lower end of the paired 95 % interval", "at_least", 0, "", NEXT_DRIVE,
+           NEXT_DRIVE_COMMAND),
+)
+TARGETS = TARGETS + DIAGNOSE_TARGETS
+
 BY_KEY = {target.key: target for target in TARGETS}
 
 
@@ -152,6 +185,64 @@ def _benchmark_ratio(key: str, reference: str, name: str):
             f"{target[f'{reference}_iqm']:.3g}")
 
 
+def _per_channel_set(rows, case_filter, hit):
+    """``{channel set: (hits, n)}`` over the rows ``case_filter`` keeps."""
+    counts = {}
+    for row in rows:
+        if case_filter(row):
+            hits, n = counts.get(row["channels"], (0, 0))
+            counts[row["channels"]] = (hits + bool(hit(row)), n + 1)
+    return counts
+
+
+def _worst(counts, sense):
+    """The worst channel set's share (%) and a detail naming it and every channel set's count."""
+    shares = {ch: 100.0 * h / n for ch, (h, n) in counts.items()}
+    worst = (min if sense == "at_least" else max)(shares, key=shares.get)
+    every = ", ".join(f"{ch} {h}/{n}" for ch, (h, n) in sorted(counts.items()))
+    return shares[worst], f"worst {worst}; {every}"
+
+
+def _other_forms(key: str):
+    source = ROOT / BY_KEY[key].source
+    if not source.exists():
+        return None
+    rows = json.loads(source.read_text(encoding="utf-8"))["rows"]
+    sense = BY_KEY[key].sense
+    effects = lambda r: r["case"] not in ("none_other_numerics",)  # noqa: E731
+    nones = lambda r: r["case"] == "none_other_numerics"  # noqa: E731
+    if key == "other_forms_right":
+        return _worst(_per_channel_set(rows, effects, lambda r: r["outcome"] == "right"), sense)
+    if key == "other_forms_right_or_tied":
+        return _worst(_per_channel_set(rows, effects, lambda r: r["outcome"] in ("right", "ambiguous_with_truth")),
+                      sense)
+    if key == "other_forms_wrong_names":
+        return _worst(_per_channel_set(rows, effects, lambda r: r["outcome"] == "wrong_name"), sense)
+    if key in ("none_false_alarms_white", "none_false_alarms_coloured"):
+        return _worst(_per_channel_set(rows, nones, lambda r: r["verdict"] != "none"), sense)
+    confident = [r for r in rows if r["confidence"] is not None and r["confidence"] >= 0.8]
+    exact = sum(r["outcome"] == "right" for r in confident)
+    singles = [r for r in confident if r["verdict"] not in ("ambiguous", "none", "unexplained")]
+    ties = [r for r in confident if r["verdict"] == "ambiguous"]
+    detail = (f"{exact} of {len(confident)}; single names {sum(r['outcome'] == 'right' for r in singles)} of "
+              f"{len(singles)} right, ties {sum(r['outcome'] == 'ambiguous_with_truth' for r in ties)} of "
+              f"{len(ties)} contain the truth")
+    return (100.0 * exact / len(confident) if confident else 0.0), detail
+
+
+def _next_drive(key: str):
+    result = _json(BY_KEY[key].source)
+    if key == "next_drive_beats_control":
+        paired = result["paired_designed_minus_control"]
+        return paired["ci95"][0], (f"mean {paired['mean']:+.2f} [{paired['ci95'][0]:+.2f}, {paired['ci95'][1]:+.2f}] "
+                                   f"over {paired['cases']} recordings")
+    counts = {}
+    for row in result["summary"]:
+        hits, n = counts.get(row["channel_set"], (0, 0))
+        counts[row["channel_set"]] = (hits + row["designed"], n + row["cases"])
+    return _worst(counts, "at_least")
+
+
 def measurement(key: str):
     """``(value, detail)`` of a target from its committed file, or None where the file is missing."""
     if key == "env_single":
@@ -172,6 +263,10 @@ def measurement(key: str):
         return _benchmark_ratio(key, "ramp", "ramp")
     if key == "drift_rms_half_best_schedule":
         return _benchmark_ratio(key, "schedule", "best_schedule")
+    if key.startswith(("other_forms_", "none_false_alarms_", "confident_")):
+        return _other_forms(key)
+    if key.startswith("next_drive_") and key != "next_drive_20000":
+        return _next_drive(key)
     raise KeyError(f"no measurement for target {key!r}")
 
 
@@ -182,6 +277,8 @@ def _files(source: str) -> str:
 def _measured(value: float, unit: str) -> str:
     if unit == "steps/s":
         return f"{value:,.0f} {unit}"
+    if unit == "%":
+        return f"{value:.0f} %"
     return f"{value:.1f} {unit}" if unit == "s" else f"{value:.2f}"
 
 

@@ -103,3 +103,22 @@ def test_stated_speed_targets_are_the_targets_module():
     envs = section(DOCS / "speed.md", "bench-envs")
     assert f"| ≥ {BY_KEY['env_single'].bound:,.0f} |" in envs
     assert f"| ≥ {BY_KEY['env_vector_1024'].bound:,.0f} |" in envs
+
+
+def test_mismatch_tool_targets_take_the_worst_channel_set_and_count_false_alarms_on_none_only():
+    """The accuracy rows read per channel set and report the worst: a false alarm is a `none` recording named
+    anything else, and an effect recording's right share ignores the `none` recordings."""
+    from experiments.targets import _per_channel_set, _worst
+
+    rows = [{"case": c, "channels": ch, "verdict": v, "outcome": o} for c, ch, v, o in (
+        ("none_other_numerics", "both", "none", "right"), ("none_other_numerics", "both", "unexplained", "other"),
+        ("none_other_numerics", "magnetization", "none", "right"),
+        ("mains_pickup", "both", "mains_pickup", "right"),
+        ("mains_pickup", "magnetization", "sensor_lag", "wrong_name"),
+        ("sensor_gain_drift", "magnetization", "sensor_gain_drift", "right"))]
+    nones = _per_channel_set(rows, lambda r: r["case"] == "none_other_numerics", lambda r: r["verdict"] != "none")
+    assert nones == {"both": (1, 2), "magnetization": (0, 1)}
+    assert _worst(nones, "at_most") == (50.0, "worst both; both 1/2, magnetization 0/1")
+    right = _per_channel_set(rows, lambda r: r["case"] != "none_other_numerics", lambda r: r["outcome"] == "right")
+    assert right == {"both": (1, 1), "magnetization": (1, 2)}
+    assert _worst(right, "at_least")[0] == 50.0

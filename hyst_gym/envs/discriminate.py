@@ -22,6 +22,11 @@ the applied field, a Gaussian likelihood of the measured M/Ms). The episode ends
 probability reaches :data:`DECIDED` (terminated, decided), at an overheat (terminated), or at 200 steps; the
 score is the time to the decision (s, the deciding step included; the whole 10 s when undecided or overheated,
 an overheat on the deciding step too).
+
+:func:`decision_time_bound` bounds the expected score of any agent from below, given upper envelopes of the
+relative entropy between the truth's and the alternatives' noise-free outputs that admissible fields can gather
+(the data-processing inequality at the posterior's threshold, :data:`DECISION_ODDS`; derived on
+docs/envs/discriminate.md).
 """
 
 from __future__ import annotations
@@ -399,5 +404,172 @@ class DiscriminateEnv(SingleOfVector):
         super().__init__(task, render_mode, **overrides)
 
 
-__all__ = ["CANDIDATES", "CandidateModels", "Candidates", "DiscriminateEnv", "DiscriminateVectorEnv",
-           "advance_candidates", "candidate_a", "candidate_models", "discriminate_candidates", "recording_drive"]
+# ---------------------------------------------------------------- the information bound on the decision time
+
+#: the decision's odds: the truth's posterior reaches :data:`DECIDED` exactly when the alternatives' likelihood
+#: ratios to the truth sum to at most this, ``sum_j exp(-LLR_j) <= (1 - DECIDED)/DECIDED`` (uniform prior)
+DECISION_ODDS = (1.0 - DECIDED) / DECIDED
+
+
+def decided_kl(probability, ratio: float):
+    """``kl(p || ratio*p)``: the binary relative entropy (nats) between deciding with probability ``p`` under the
+    truth and with at most ``ratio*p`` under the alternative; increasing in p for ``ratio < 1/e``, from 0 to
+    ``log(1/ratio)`` at p = 1."""
+    p = np.asarray(probability, dtype=np.float64)
+    q = ratio * p
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tail = np.where(p < 1.0, (1.0 - p) * np.log((1.0 - p) / (1.0 - q)), 0.0)
+        head = np.where(p > 0.0, p * math.log(1.0 / ratio), 0.0)
+    return head + tail
+
+
+def decided_probability_bound(kl_bound, ratio: float, iterations: int = 60):
+    """The largest p with :func:`decided_kl` (p, ``ratio``) <= ``kl_bound`` (1 where the bound reaches
+    ``log(1/ratio)``): the most the truth can be decided with when the observations carry at most ``kl_bound``
+    nats against the alternative (bisection, rounded up)."""
+    kl_bound = np.asarray(kl_bound, dtype=np.float64)
+    low, high = np.zeros_like(kl_bound), np.ones_like(kl_bound)
+    for _ in range(iterations):
+        middle = 0.5 * (low + high)
+        below = decided_kl(middle, ratio) <= kl_bound
+        low, high = np.where(below, middle, low), np.where(below, high, middle)
+    return np.where(kl_bound >= math.log(1.0 / ratio), 1.0, high)
+
+
+def concave_majorant(values) -> np.ndarray:
+    """The least concave majorant of ``values`` at 0, 1, ..., len - 1 (the upper hull, interpolated)."""
+    values = np.asarray(values, dtype=np.float64)
+    hull: list = []
+    for t, v in enumerate(values):
+        while len(hull) >= 2:
+            (t1, v1), (t2, v2) = hull[-2], hull[-1]
+            if (v2 - v1) * (t - t1) <= (v - v1) * (t2 - t1):
+                hull.pop()
+            else:
+                break
+        hull.append((t, v))
+    ts, vs = zip(*hull)
+    return np.interp(np.arange(values.shape[0]), ts, vs)
+
+
+def _smallest_reaching(hull: np.ndarray, needed: np.ndarray) -> np.ndarray:
+    """The smallest x (steps) at which the piecewise-linear nondecreasing ``hull`` reaches each ``needed``
+    (inf where it never does)."""
+    index = np.searchsorted(hull, needed, side="left")
+    inside = index < hull.shape[0]
+    i = np.clip(index, 1, hull.shape[0] - 1)
+    rise = hull[i] - hull[i - 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = np.where(rise > 0, i - 1 + (needed - hull[i - 1]) / rise, i)
+    return np.where(inside, np.where(index == 0, 0.0, x), np.inf)
+
+
+def _decided_kl_slope(probability, ratio: float):
+    """d/dp of :func:`decided_kl` (p, ``ratio``), for p < 1."""
+    p = np.asarray(probability, dtype=np.float64)
+    return (math.log(1.0 / ratio) - 1.0 + np.log((1.0 - ratio * p) / (1.0 - p))
+            + ratio * (1.0 - p) / (1.0 - ratio * p))
+
+
+#: the points at which the survival route's linear program takes tangents of :func:`decided_kl` (convex in p, so
+#: each tangent lies below it: a relaxation), denser towards p = 1 where it steepens
+TANGENT_POINTS = np.concatenate([np.linspace(0.0, 0.9, 46), 1.0 - np.logspace(-1.0, -8.0, 36)])
+
+
+def _survival_steps(envelopes, total_steps: int) -> float:
+    """Route 3 of :func:`decision_time_bound`: the least ``sum_t (1 - a_t)`` over every sequence a_t (the
+    probability of a decision by step t) that meets, per envelope, ``kl(a_t || ratio a_t) <= sum_{s<=t} (k(s) -
+    k(s-1)) (1 - a_{s-1})`` (the information gathered while the episode runs) with kl replaced by its tangents: a
+    linear program, its optimum a lower bound on the expected score (steps)."""
+    from scipy.optimize import linprog
+    from scipy.sparse import coo_matrix
+
+    steps = int(total_steps)
+    count = steps - 1  # a_1..a_{N-1}; a_0 = 0 and a_N does not enter the score
+    rows, cols, vals, b_eq, ub_rows, ub_cols, ub_vals, b_ub = [], [], [], [], [], [], [], []
+    for e, (ratio, k) in enumerate(envelopes):
+        k = np.maximum.accumulate(np.asarray(k, dtype=np.float64)[: steps + 1])
+        gain = np.diff(k)  # gain[t - 1] = k(t) - k(t - 1) >= 0
+        budget = count * (1 + e)  # the column of B_{e,1}; B_{e,t} at budget + t - 1
+        for t in range(1, steps):
+            row = len(b_eq)
+            rows += [row]
+            cols += [budget + t - 1]
+            vals += [1.0]
+            if t > 1:  # B_t - B_{t-1} + gain_t a_{t-1} = gain_t
+                rows += [row, row]
+                cols += [budget + t - 2, t - 2]
+                vals += [-1.0, gain[t - 1]]
+            b_eq.append(gain[t - 1])
+        slopes = _decided_kl_slope(TANGENT_POINTS, ratio)
+        offsets = slopes * TANGENT_POINTS - decided_kl(TANGENT_POINTS, ratio)
+        for t in range(1, steps):
+            for slope, offset in zip(slopes, offsets):  # slope a_t - B_t <= slope p* - kl(p*)
+                row = len(b_ub)
+                ub_rows += [row, row]
+                ub_cols += [t - 1, budget + t - 1]
+                ub_vals += [slope, -1.0]
+                b_ub.append(offset)
+    width = count * (1 + len(envelopes))
+    objective = np.concatenate([-np.ones(count), np.zeros(width - count)])
+    bounds = [(0.0, 1.0)] * count + [(None, None)] * (width - count)
+    result = linprog(objective, A_ub=coo_matrix((ub_vals, (ub_rows, ub_cols)), shape=(len(b_ub), width)).tocsr(),
+                     b_ub=np.array(b_ub), A_eq=coo_matrix((vals, (rows, cols)), shape=(len(b_eq), width)).tocsr(),
+                     b_eq=np.array(b_eq), bounds=bounds, method="highs")
+    if not result.success:
+        raise RuntimeError(f"decision_time_bound: the survival program failed: {result.message}")
+    return steps + float(result.fun) - 1e-6  # the solver's tolerance, on the safe side
+
+
+class DecisionTimeBound(NamedTuple):
+    """:func:`decision_time_bound`: ``steps`` (the bound on the expected score, steps, the largest of its
+    routes): ``tail_steps`` (the tail sum), ``wald_steps`` (the stopped likelihood ratio), ``survival_steps``
+    (the information gathered while the episode runs, a linear program); ``decided_by`` (the tail route's bound
+    on the probability of a decision by each step 0..N)."""
+
+    steps: float
+    tail_steps: float
+    wald_steps: float
+    survival_steps: float
+    decided_by: np.ndarray
+
+
+def decision_time_bound(envelopes, total_steps: int) -> DecisionTimeBound:
+    """A lower bound on the expected score (steps; a step per step to the decision, ``total_steps`` when
+    undecided or overheated) of any agent, given upper envelopes of the information the agent can gather.
+
+    ``envelopes``: ``(ratio, k)`` pairs, k an array over steps 0..N (k[0] = 0, nondecreasing): for ``ratio`` =
+    :data:`DECISION_ODDS`, the most relative entropy ``sum_s d_s^2/(2 sigma^2)`` (d_s the noise-free difference
+    of the truth's and one alternative's M/Ms at step s) that any admissible field path gathers by step t; for
+    ``ratio`` = DECISION_ODDS/2, the most of the two alternatives' mean. The derivation (docs/envs/
+    discriminate.md): a decision by step t is an event A with P_alt(A) <= ratio * P_truth(A) (the posterior's
+    threshold), so by the data-processing inequality kl(P(A) || ratio P(A)) <= the relative entropy of the
+    observations up to min(end, t), whose expectation is E[sum of d_s^2/(2 sigma^2)] (optional stopping) <=
+    E[k(min(end, t))] = sum_{s<=t} (k(s) - k(s-1)) P(end >= s) <= k(t). Route 1 (tail sum): E[score] = sum_t
+    (1 - P(decided by t)), P(decided by t) bounded through k(t) by the least of the envelopes. Route 2 (Wald),
+    per envelope: with p = P(decided at all) and tau the end, kl(p || ratio p) <= E[k(tau)] <= k_hat(E[tau])
+    (k_hat the concave majorant, Jensen) and E[score] >= max(E[tau], N (1 - p)), minimized over p; the largest
+    over the envelopes. Route 3 (survival): P(end >= s) <= 1 - P(decided by s - 1), every envelope at once
+    (:func:`_survival_steps`). Returns the largest route."""
+    total_steps = int(total_steps)
+    decided_by = np.ones(total_steps + 1)
+    wald = 0.0
+    probabilities = np.linspace(0.0, 1.0, 4001)
+    for ratio, k in envelopes:
+        k = np.maximum.accumulate(np.asarray(k, dtype=np.float64)[: total_steps + 1])
+        decided_by = np.minimum(decided_by, decided_probability_bound(k, ratio))
+        # route 2: the smallest E[tau] whose concave envelope reaches kl(p || ratio p), per p, against N (1 - p)
+        hull = concave_majorant(k)
+        stopping = _smallest_reaching(hull, decided_kl(probabilities, ratio))
+        # on [p_i, p_i+1] the larger term is at least max(stopping(p_i), N (1 - p_i+1)): a bound over every p
+        wald = max(wald, float(np.min(np.maximum(stopping[:-1], total_steps * (1.0 - probabilities[1:])))))
+    decided_by[0] = 0.0
+    tail = float(np.sum(1.0 - decided_by[:total_steps]))
+    survival = _survival_steps(envelopes, total_steps)
+    return DecisionTimeBound(max(tail, wald, survival), tail, wald, survival, decided_by)
+
+
+__all__ = ["CANDIDATES", "DECISION_ODDS", "CandidateModels", "Candidates", "DecisionTimeBound", "DiscriminateEnv",
+           "DiscriminateVectorEnv", "advance_candidates", "candidate_a", "candidate_models", "concave_majorant",
+           "decided_kl", "decided_probability_bound", "decision_time_bound", "discriminate_candidates",
+           "recording_drive"]
