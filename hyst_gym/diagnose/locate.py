@@ -295,6 +295,7 @@ def residual_structure(held, fit, held_state, fit_state, horizon: int = NOISE_HO
     held-out block."""
     colour = {ch: noise_colour(fit[ch], fit_state, horizon) for ch in held}
     terms, powers, short_terms = [], [], []
+    used = horizon
     for ch, r in held.items():
         r = np.asarray(r, dtype=float)
         n = r.size
@@ -302,12 +303,16 @@ def residual_structure(held, fit, held_state, fit_state, horizon: int = NOISE_HO
         for k in STRUCTURE_LAGS:
             lagged[:n - k] += r[:n - k] * r[k:] * n / (n - k) / len(STRUCTURE_LAGS)
         short_terms.append(lagged)
-        terms.append(partner_products(r, held_state, horizon)[0] if colour[ch]["coloured"] else lagged)
+        if colour[ch]["coloured"]:
+            products, used = partner_products(r, held_state, horizon)
+            terms.append(products)
+        else:
+            terms.append(lagged)
         powers.append(r * r)
     out = _share_interval(np.concatenate(terms), np.concatenate(powers), STRUCTURE_BOOTSTRAP, 0)
     coloured = [ch for ch in held if colour[ch]["coloured"]]
     out.update(method="drive-paired" if coloured else "short-lag", coloured_channels=coloured,
-               noise_colour=colour, horizon_samples=int(horizon))
+               noise_colour=colour, horizon_samples=int(used))
     if coloured:
         out["short_lag_share"] = _share_interval(np.concatenate(short_terms), np.concatenate(powers), 0, 0)["share"]
     return out
@@ -329,8 +334,9 @@ def colour_note(structure: dict, heldout_by_channel: dict) -> str | None:
     total = [heldout_by_channel[ch] / np.sqrt(max(structure["noise_colour"][ch]["power_ratio"], 1.0))
              for ch in coloured if ch in heldout_by_channel]
     return (f"the noise is coloured on {', '.join(parts)}: on the fitting block the residual is correlated over a "
-            "few samples in a way that does not follow the drive, which is taken for sensor noise, so materiality is "
-            f"read between moments of the same drive state at least {structure['horizon_samples']} samples apart "
+            "few samples in a way that does not follow the drive, which is taken for sensor noise, so there "
+            f"materiality is read between moments of the same drive state at least {structure['horizon_samples']} "
+            "samples apart "
             "(assumed: the noise decorrelates within them, a model error follows the drive): "
             f"{100 * structure['share']:.0f} % of the noise power, where "
             f"lags 1-3 would read {100 * structure['short_lag_share']:.0f} %; held-out errors stay in units of the "
