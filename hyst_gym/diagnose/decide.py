@@ -43,7 +43,7 @@ Verdicts:
   no plausible candidate explains most of it; the report says where the residual lives;
 * ``none`` -- the base model predicts the held-out block to within noise and nothing *material*
   is left: the structured part of its held-out residual
-  (:func:`hyst_gym.diagnose.locate.structured_power`) is below ``MATERIAL_SHARE`` of the noise
+  (:func:`hyst_gym.diagnose.locate.residual_structure`) is below ``MATERIAL_SHARE`` of the noise
   power. A residual within the noise level whose structured part reaches that share is
   ``unexplained``. The report quantifies the structure either way (its share, interval and where
   it lives).
@@ -58,6 +58,27 @@ the noise RMS: below it the held-out RMSE is raised by less than 12 %, under the
 (``ACCEPT_IMPROVEMENT``) that any candidate must remove to be accepted, so no explanation of
 such a structure could ever be accepted on this record; the bar was fixed from that argument,
 before the studies were rerun.
+
+Coloured noise. Noise units come from second differences (:func:`.model.noise_level`), which see only
+the white part of the sensor noise, and the structured share of a residual was read at lags 1-3, where
+coloured noise is correlated too: coloured noise alone then read as a material structure. The
+assumption that separates the two: *the sensor noise does not depend on the drive and decorrelates
+within* ``locate.NOISE_HORIZON`` *(32) samples, while a model error follows the drive*, so two moments
+at which the drive is in the same state carry the same error however far apart they are. Per channel,
+on the fitting block (:func:`.locate.noise_colour`): the noise is *coloured* when lags 1-3 read at least
+half a material share more structure than the products of the residual at pairs of moments of the same
+drive state (field, field rate) at least the horizon apart, and what does not follow the drive has
+decorrelated by the horizon (its covariance beyond it below a material share; a hum or a drift does
+not, and is no noise). A coloured channel's held-out structure is then read from those pairs
+(:func:`.locate.drive_paired_power`), a white channel's at lags 1-3 as before, and the report says so
+in a note (the power over the white part, the correlation, both shares). Held-out errors stay in units
+of the white part, so ``UNEXPLAINED_RMSE`` still reads coloured noise as error (the note gives the
+base model's held-out RMSE in units of the total noise too): the total noise read from a residual
+also holds whatever error does not follow the drive's state, such as a sensor's ringing (17-55 times
+the white power on white-noise ``sensor_resonance`` records), and dividing by it would hide such
+effects. What the assumption cannot separate: an error that is not a function of the drive's state and
+decorrelates within the horizon (a ringing) is taken for noise by the materiality check; the
+candidates still name it.
 
 ``confidence`` (0-1) is the verdict's margin over the nearest *other* verdict it could have
 been, each margin scaled to 0 at the bar that separates the two and 1 far from it:
@@ -455,8 +476,10 @@ def _none_or_structure(base_heldout, best_improvement, mechanics_pinned, base_st
         lo, hi = base_structure["ci95"]
         notes.append(f"the base model is within {base_heldout:.2f} noise units of the held-out block, but "
                      f"{100 * base_structure['share']:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}] of the noise power "
-                     "in its "
-                     f"residual is structured (material from {100 * MATERIAL_SHARE:.0f} %): the model leaves out "
+                     "in its residual is structured"
+                     + (" between moments of the same drive state" if base_structure.get("method") == "drive-paired"
+                        else "")
+                     + f" (material from {100 * MATERIAL_SHARE:.0f} %): the model leaves out "
                      "something that no candidate explains")
         margin = (base_structure["share"] - MATERIAL_SHARE) / MATERIAL_SHARE
         return Decision("unexplained", NONE_CONFIDENCE_CEILING * float(np.clip(margin, 0.0, 1.0)), notes=notes)

@@ -4,8 +4,10 @@
 
 The recording is split in time (:class:`~.fit.Split`): the first ``1 - holdout`` of the samples
 fit every model, the last ``holdout`` (a contiguous block) is only predicted. Errors are in noise
-units (each channel's residual divided by its noise level, estimated from second differences), so
-a model that explains the data to within noise has a held-out RMSE near 1. The decision rule, the
+units (each channel's residual divided by its noise level, estimated from second differences, which
+see the white part of the noise), so a model that explains the data to within white noise has a
+held-out RMSE near 1; coloured noise is found and handled in the materiality check (:mod:`.decide`,
+"Coloured noise"), and a note reports it. The decision rule, the
 plausibility checks and the meaning of ``confidence`` are in :mod:`.decide`.
 """
 
@@ -182,12 +184,22 @@ def _failure_notes(candidates) -> list:
 
 
 def _structure_left(split, base, located):
-    """The structured part of the base model's held-out residual, and that residual."""
-    base_residual = split.heldout(base.model, base.values)[2]
-    structure_left = locate.structured_power(base_residual)
+    """The structured part of the base model's held-out residual (each channel read as its noise's colour
+    allows, :func:`.locate.residual_structure`), that residual, and the note on coloured noise (None if white)."""
+    _, heldout_by_channel, base_residual = split.heldout(base.model, base.values)
+    recording = split.recording
+    predicted = base.model.predict(base.values)
+    state = locate.drive_state(recording.field, recording.time)
+
+    def normalized(ch, mask):
+        return (predicted[ch][mask] - recording.output(ch)[mask]) / split.noise[ch]
+
+    structure_left = locate.residual_structure({ch: normalized(ch, split.held_mask) for ch in base.model.channels},
+                                               {ch: normalized(ch, split.fit_mask) for ch in base.model.channels},
+                                               state[split.held_mask], state[split.fit_mask])
     structure_left.update(material_share=MATERIAL_SHARE, material=bool(structure_left["share"] >= MATERIAL_SHARE),
                           where=located["summary"])
-    return structure_left, base_residual
+    return structure_left, base_residual, locate.colour_note(structure_left, heldout_by_channel)
 
 
 def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, progress, locate_windows,
@@ -217,7 +229,7 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
     base, base_heldout = guard_base(base, candidates, split)
     release, released, mechanics_pinned = _check_candidates(split, base, base_heldout, candidates)
     notes_on_priors = prior_notes(base, release)
-    structure_left, base_residual = _structure_left(split, base, located)
+    structure_left, base_residual, colour_note = _structure_left(split, base, located)
     decision = decide(candidates, base_heldout, recording.channels, mechanics_pinned=mechanics_pinned,
                       base_structure=structure_left, base_residual=base_residual)
     continuum = {}
@@ -256,7 +268,8 @@ def _diagnose(recording, model, anhysteretic, fit_mechanics, holdout, effects, p
                     located=located, improvement=float(chosen.improvement) if chosen else 0.0, structure=structure,
                     split_index=split.cut, noise=split.noise, seconds=0.0, chosen=chosen,
                     heldout_by_channel=heldout_by_channel, tied=decision.tied, advice=decision.advice,
-                    notes=read_notes(recording) + decision.notes + notes_on_priors + _failure_notes(candidates),
+                    notes=read_notes(recording) + ([colour_note] if colour_note else []) + decision.notes
+                    + notes_on_priors + _failure_notes(candidates),
                     skipped=skipped,
  material_structure=structure_left,
                     identifiability={"priors": release, "unidentified": directions}, continuum=continuum)
