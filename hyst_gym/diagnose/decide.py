@@ -70,7 +70,7 @@ half a material share more structure than the products of the residual at pairs 
 drive state (field, field rate) at least the horizon apart, and what does not follow the drive has
 decorrelated by the horizon (its covariance beyond it below a material share; a hum or a drift does
 not, and is no noise). A coloured channel's held-out structure is then read from those pairs
-(:func:`.locate.drive_paired_power`), a white channel's at lags 1-3 as before, and the report says so
+(:func:`.locate.partner_products`), a white channel's at lags 1-3 as before, and the report says so
 in a note (the power over the white part, the correlation, both shares). Held-out errors stay in units
 of the white part, so ``UNEXPLAINED_RMSE`` still reads coloured noise as error (the note gives the
 base model's held-out RMSE in units of the total noise too): the total noise read from a residual

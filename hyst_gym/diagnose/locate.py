@@ -9,7 +9,7 @@ verdict on their own (the decision is by held-out error, :mod:`hyst_gym.diagnose
 The structured share that decides materiality (:func:`residual_structure`) is an effect size, not a
 significance level. Where a channel's noise is white it is read at lags 1-3 (:func:`structured_power`);
 where the noise is coloured (:func:`noise_colour`) it is read between moments of the same drive state at
-least ``NOISE_HORIZON`` samples apart (:func:`drive_paired_power`), on the assumption that the sensor noise
+least ``NOISE_HORIZON`` samples apart (:func:`partner_products`), on the assumption that the sensor noise
 decorrelates within that horizon while a model error follows the drive (:mod:`.decide`, "Coloured noise").
 """
 
@@ -125,9 +125,9 @@ STRUCTURE_LAGS = (1, 2, 3)
 #: Moving-block bootstrap draws behind the interval of :func:`structured_power` (fixed seed).
 STRUCTURE_BOOTSTRAP = 200
 #: Samples within which the sensor noise, white or coloured, is taken to decorrelate: the assumption that
-#: separates noise from a model error in :func:`drive_paired_power` (module docstring of :mod:`.decide`).
+#: separates noise from a model error in :func:`partner_products` (module docstring of :mod:`.decide`).
 NOISE_HORIZON = 32
-#: Partners of each sample in :func:`drive_paired_power`: its nearest drive states at least
+#: Partners of each sample in :func:`partner_products`: its nearest drive states at least
 #: ``NOISE_HORIZON`` samples away.
 STATE_PARTNERS = 4
 #: A channel's noise is coloured when, on the fitting block, the white-noise measure (lags 1..3) reads at least
@@ -172,15 +172,20 @@ def structured_power(residual, bootstrap: int = STRUCTURE_BOOTSTRAP, seed: int =
     power of e: ``structured = mean_k mean_t r_t r_{t+k}``, ``noise = mean r^2 - structured``,
     ``share = structured/noise`` (about 100 at most: the noise power is floored at 1 % of the total).
     Coloured noise is correlated over those lags too and reads as structure: a diagnosis uses
-    :func:`drive_paired_power`, which does not assume white noise; this measure stays for a residual
+    :func:`partner_products`, which does not assume white noise; this measure stays for a residual
     without its drive. The interval is a 95 % moving-block bootstrap."""
     r = np.asarray(residual, dtype=float)
+    return _share_interval(short_lag_terms(r), r * r, bootstrap, seed)
+
+
+def short_lag_terms(r) -> np.ndarray:
+    """Per sample t, the mean over :data:`STRUCTURE_LAGS` of the lagged products r_t r_{t+k}, each lag scaled by
+    n/(n - k) (the last k samples have none), so that their mean is the mean autocovariance at those lags."""
     n = r.size
     lagged = np.zeros(n)
     for k in STRUCTURE_LAGS:
-        # each lagged product r_t r_{t+k}, credited to t (the last k samples have none)
         lagged[:n - k] += r[:n - k] * r[k:] * n / (n - k) / len(STRUCTURE_LAGS)
-    return _share_interval(lagged, r * r, bootstrap, seed)
+    return lagged
 
 
 def drive_state(field, time) -> np.ndarray:
@@ -193,7 +198,20 @@ def drive_state(field, time) -> np.ndarray:
 def partner_products(residual, state, horizon: int = NOISE_HORIZON, partners: int = STATE_PARTNERS):
     """Per sample t, the mean of r_t r_u over its ``partners`` nearest samples u in drive state (Euclidean in
     ``state``) with |t - u| >= ``horizon``; and the horizon used (at most an eighth of the record).
-    :func:`partner_means` gives the mean of those r_u."""
+    :func:`partner_means` gives the mean of those r_u. The mean of these products is the structured power of
+    the residual for white *or coloured* noise (:func:`residual_structure` reads a coloured channel with it).
+
+    Assumption: the sensor noise does not depend on the drive and decorrelates within ``horizon`` samples,
+    while a model error follows the drive: two moments at which the drive is in the same state (field and
+    field rate, :func:`drive_state`) carry the same error however far apart they are. So the power of the
+    error is the mean product of the residual at pairs of moments with (nearly) the same drive state that are
+    at least ``horizon`` samples apart (each sample paired with its ``STATE_PARTNERS`` nearest such states):
+    the noise of the two moments is independent and drops out, whatever its colour.
+    ``noise = mean r^2 - structured``, ``share = structured/noise``, as :func:`structured_power`. On a slow drive
+    the partners are the samples just beyond the horizon, and this is the autocovariance at that lag; on a fast
+    or repeating drive they are revisits of the same state, so a model error that changes within a few samples
+    still counts. What it cannot see: an error that differs between visits of the same drive state (a slow
+    drift of the sensor, a temperature) further apart than the drive takes to return; the candidates name those."""
     means, horizon = partner_means(residual, state, horizon, partners)
     return np.asarray(residual, dtype=float) * means, horizon
 
@@ -222,41 +240,12 @@ def partner_means(residual, state, horizon: int = NOISE_HORIZON, partners: int =
     return np.asarray(residual, dtype=float)[idx].mean(axis=1), horizon
 
 
-def drive_paired_power(residuals, state, horizon: int = NOISE_HORIZON, bootstrap: int = STRUCTURE_BOOTSTRAP,
-                       seed: int = 0) -> dict:
-    """The structured part of a residual as a share of its noise part, for white *or coloured* noise.
-
-    Assumption: the sensor noise does not depend on the drive and decorrelates within ``horizon`` samples,
-    while a model error follows the drive: two moments at which the drive is in the same state (field and
-    field rate, :func:`drive_state`) carry the same error however far apart they are. So the power of the
-    error is the mean product of the residual at pairs of moments with (nearly) the same drive state that are
-    at least ``horizon`` samples apart (each sample paired with its ``STATE_PARTNERS`` nearest such states,
-    :func:`partner_products`): the noise of the two moments is independent and drops out, whatever its colour.
-    ``noise = mean r^2 - structured``, ``share = structured/noise``, as :func:`structured_power`. On a slow drive
-    the partners are the samples just beyond the horizon, and this is the autocovariance at that lag; on a fast
-    or repeating drive they are revisits of the same state, so a model error that changes within a few samples
-    still counts. What it cannot see: an error that differs between visits of the same drive state (a slow
-    drift of the sensor, a temperature) further apart than the drive takes to return; the candidates name those.
-
-    ``residuals``: one array per channel, each aligned with ``state`` (pairs stay within a channel); the
-    interval is a 95 % moving-block bootstrap over the samples' products."""
-    products, powers = [], []
-    used = horizon
-    for r in residuals:
-        p, used = partner_products(r, state, horizon)
-        products.append(p)
-        powers.append(np.asarray(r, dtype=float) ** 2)
-    out = _share_interval(np.concatenate(products), np.concatenate(powers), bootstrap, seed)
-    out.update(method="drive-paired", horizon_samples=int(used), partners=STATE_PARTNERS)
-    return out
-
-
 def noise_colour(residual, state, horizon: int = NOISE_HORIZON) -> dict:
     """Whether a channel's noise is coloured, read on the base model's residual on the fitting block (in units of
     the second-difference noise level, so never on the held-out block that the verdict judges).
 
     ``coloured``: the white-noise measure (:func:`structured_power`, lags 1..3) reads at least
-    ``COLOURED_EXCESS`` more structure than the drive-paired one (:func:`drive_paired_power`): the residual is
+    ``COLOURED_EXCESS`` more structure than the drive-paired one (:func:`partner_products`): the residual is
     correlated over a few samples in a way that does not follow the drive. With white noise both read the same
     structure. Also reported: ``power_ratio``, the residual's power less the part that follows the drive, in
     noise units squared (about 1 for white noise; for coloured noise, its total power over the white part that
@@ -289,7 +278,7 @@ def noise_colour(residual, state, horizon: int = NOISE_HORIZON) -> dict:
 def residual_structure(held, fit, held_state, fit_state, horizon: int = NOISE_HORIZON) -> dict:
     """The structured share of the base model's held-out residual (``held``: channel -> residual in noise units),
     each channel read by the measure its noise allows: lags 1..3 (:func:`structured_power`) where its noise is
-    white, the drive-paired products (:func:`drive_paired_power`) where :func:`noise_colour` finds it coloured on
+    white, the drive-paired products (:func:`partner_products`) where :func:`noise_colour` finds it coloured on
     the fitting block (``fit``, same channels). The result is :func:`structured_power`'s, with ``noise_colour``
     per channel and, for the coloured channels, ``short_lag_share``: what lags 1..3 would have read on the
     held-out block."""
@@ -298,10 +287,7 @@ def residual_structure(held, fit, held_state, fit_state, horizon: int = NOISE_HO
     used = horizon
     for ch, r in held.items():
         r = np.asarray(r, dtype=float)
-        n = r.size
-        lagged = np.zeros(n)
-        for k in STRUCTURE_LAGS:
-            lagged[:n - k] += r[:n - k] * r[k:] * n / (n - k) / len(STRUCTURE_LAGS)
+        lagged = short_lag_terms(r)
         short_terms.append(lagged)
         if colour[ch]["coloured"]:
             products, used = partner_products(r, held_state, horizon)
