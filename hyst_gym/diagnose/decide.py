@@ -34,11 +34,12 @@ Verdicts:
   name where a family of another slot, which the record may not separate, explains the held-out block
   nearly as well;
 * a *doubted* candidate ties with the winner too (:func:`doubted_ties`): one set aside only because a parameter
-  sits at a bound of its physical range (check 1; every other check passed), of another slot registered as
-  confusable with the winner on this channel set, that predicts the held-out block better than the winner. A
-  bound is a judgement of what is physical, not a measurement: when the record may not separate the two slots
-  and the doubted family predicts better, naming the winner alone would rest on that judgement only, so the
-  verdict is ``ambiguous``, naming both (its note says which parameter sits at which bound);
+  sits at a bound of its physical range (check 1) or its main parameter disagrees across time blocks (check 2),
+  every other check passed, of another slot registered as confusable with the winner on this channel set, that
+  predicts the held-out block better than the winner. Both checks doubt the family's form, not its slot: when
+  the record may not separate the two slots and the doubted family predicts better, naming the winner alone
+  would rest on that doubt only, so the verdict is ``ambiguous``, naming both (its note says which parameter
+  sits at a bound or disagrees across blocks);
 * ``unexplained`` -- the base model misses by more than ``UNEXPLAINED_RMSE`` noise units and
   no plausible candidate explains most of it; the report says where the residual lives;
 * ``none`` -- the base model predicts the held-out block to within noise and nothing *material*
@@ -153,18 +154,30 @@ class Plausibility:
     block_values: list = dataclass_field(default_factory=list)
     #: Parameters set aside for sitting at a bound of their physical range (check 1).
     at_bound: list = dataclass_field(default_factory=list)
+    #: Main parameters set aside for disagreeing across the record's time blocks (check 2).
+    disagreeing: list = dataclass_field(default_factory=list)
 
-    def reject(self, reason: str, at_bound: str | None = None):
-        """Set the candidate aside for ``reason``; ``at_bound``: the parameter, when the reason is its bound."""
+    def reject(self, reason: str, at_bound: str | None = None, disagreeing: str | None = None):
+        """Set the candidate aside for ``reason``; ``at_bound``: the parameter, when the reason is its bound;
+        ``disagreeing``: the parameter, when the reason is its disagreement across time blocks."""
         self.plausible = False
         self.reasons.append(reason)
         if at_bound is not None:
             self.at_bound.append(at_bound)
+        if disagreeing is not None:
+            self.disagreeing.append(disagreeing)
 
     @property
     def only_at_bound(self) -> bool:
         """Set aside for parameters at their bounds and for nothing else (every other check passed)."""
         return not self.plausible and len(self.at_bound) == len(self.reasons) > 0
+
+    @property
+    def only_form_doubts(self) -> bool:
+        """Set aside only by the checks that a family of the right slot but of another form also fails (a
+        parameter at a bound, a main parameter that disagrees across time blocks); the checks of a map's
+        monotonicity and of a bias field's visible offset, which no form of the slot would pass, all passed."""
+        return not self.plausible and len(self.at_bound) + len(self.disagreeing) == len(self.reasons) > 0
 
 
 def check_plausibility(candidate, noise, blocks: int = BLOCKS) -> Plausibility:
@@ -179,7 +192,8 @@ def check_plausibility(candidate, noise, blocks: int = BLOCKS) -> Plausibility:
         out.block_values = values
         if not consistent(values, sigmas):
             out.reject(f"{main} disagrees across {blocks} time blocks of the record "
-                       f"({', '.join(f'{v:.3g}' for v in values)}): one physical effect would give one value")
+                       f"({', '.join(f'{v:.3g}' for v in values)}): one physical effect would give one value",
+                       disagreeing=main)
     for what, slope in static_map_slopes(effect.name, fit.values, fit.model.channels):
         if np.min(slope) <= 0.0:
             out.reject(f"the fitted {what} is not monotone over the recorded range (slope down to "
@@ -347,18 +361,22 @@ def confusable_ties(best, plausible, base_heldout, channels) -> list:
 
 
 def doubted_ties(best, rejected, channels) -> list:
-    """Candidates set aside only for a parameter at its bound that tie with ``best`` all the same (module
-    docstring): each passed every other plausibility check, is of another slot than ``best``, registered as
-    confusable with it on this channel set, and has a lower held-out RMSE than ``best``.
+    """Candidates set aside only for doubts about their family's form that tie with ``best`` all the same
+    (module docstring): each was set aside only for a parameter at its bound (check 1) or for its main parameter
+    disagreeing across time blocks (check 2), passed the other checks, is of another slot than ``best``,
+    registered as confusable with it on this channel set, and has a lower held-out RMSE than ``best``.
 
-    Why: check 1 reads a fit that runs into a wall as mimicking something else. Yet the bounds of a family's
-    parameters are a judgement of the physical range, and a family of a slot next to it in the registry, which
-    the record may not separate from ``best``'s, may reach its wall because the physics takes another form than
-    the family's (heating that moves the pinning k by more than its linear law in the temperature). When such a
-    candidate predicts the held-out block better, naming ``best`` alone would rest on the bound only; a tie,
-    with the measurement that separates the slots, says what the record shows."""
+    Why: check 1 reads a fit that runs into a wall as mimicking something else, and check 2 a main parameter that
+    moves from block to block. Yet a family of a slot next to ``best``'s in the registry, which the record may not
+    separate from it, fails both checks as readily when the physics of its own slot takes another form than the
+    family's: heating that moves the pinning k by more than its linear law in the temperature drives beta_k to its
+    wall, and a heating network with two time constants, fitted by one, gives each block its own heating. When
+    such a candidate predicts the held-out block better, naming ``best`` alone would rest on those doubts only; a
+    tie, with the measurement that separates the slots, says what the record shows. (On the other-forms study,
+    every record this changed was a single wrong name -- the sensor's gain drift named where heating moved the
+    pinning -- that became a tie containing the truth; no right name became a tie.)"""
     table = CONFUSABLE[channel_set(channels)]
-    return [c for c in rejected if c.plausibility.only_at_bound and slot_of(c.effect) != slot_of(best.effect)
+    return [c for c in rejected if c.plausibility.only_form_doubts and slot_of(c.effect) != slot_of(best.effect)
             and frozenset({c.effect, best.effect}) in table and c.heldout_rmse < best.heldout_rmse]
 
 
@@ -435,15 +453,27 @@ def _name(plausible, candidates, base_heldout, channels, notes, rejected=()) -> 
         return Decision("unexplained", float(np.clip(confidence, 0.0, 1.0)), notes=notes)
     for c in doubted:
         notes.remove(_rejected_note(c))
-        notes.append(f"{c.effect} ties with {best.effect} although {', '.join(c.plausibility.at_bound)} "
-                     f"{'sits' if len(c.plausibility.at_bound) == 1 else 'sit'} at a bound of the physical range: "
-                     f"it predicts the held-out block better ({c.heldout_rmse:.2f} against {best.heldout_rmse:.2f} "
-                     "noise units), and the record may not separate their slots")
+        notes.append(f"{c.effect} ties with {best.effect} although {_form_doubts(c.plausibility)}: it predicts the "
+                     f"held-out block better ({c.heldout_rmse:.2f} against {best.heldout_rmse:.2f} noise units), and "
+                     "the record may not separate their slots")
     weakest = min(reduction(c, base_heldout) for c in tied)
     # margins to both alternatives: another effect (the runner-up), and 'unexplained'
     confidence = float(np.clip(min(1.0 - max(runner, 0.0) / weakest, min(naming_margin(c) for c in tied)),
                                0.0, 1.0))
     return _named_or_tied(best, tied, channels, confidence, notes)
+
+
+def _form_doubts(plausibility) -> str:
+    """Words for what set a doubted candidate aside (:func:`doubted_ties`)."""
+    parts = []
+    if plausibility.at_bound:
+        names = plausibility.at_bound
+        parts.append(f"{', '.join(names)} {'sits' if len(names) == 1 else 'sit'} at a bound of the physical range")
+    if plausibility.disagreeing:
+        names = plausibility.disagreeing
+        parts.append(f"{', '.join(names)} {'disagrees' if len(names) == 1 else 'disagree'} across time blocks of "
+                     "the record (its family's form may not be the physics')")
+    return " and ".join(parts)
 
 
 def _named_or_tied(best, tied, channels, confidence, notes) -> Decision:

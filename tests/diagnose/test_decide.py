@@ -380,16 +380,46 @@ def test_a_confusable_family_set_aside_only_at_its_bound_that_predicts_better_ti
 
 def test_a_candidate_at_its_bound_does_not_tie_when_worse_unregistered_or_implausible_otherwise():
     """The gain drift stays named when the heating at its bound predicts worse, when the pair is not registered as
-    confusable (eddy currents), and when the heating also failed another check (its main parameter disagrees
-    across the time blocks); the note then says why it was not named."""
+    confusable (eddy currents), and when the doubted family also failed a check that no form of its slot would pass
+    (a static map that is not monotone); the note then says why it was not named."""
     best = _partial("sensor_gain_drift", 1.6)
     assert decide([best, _at_bound("thermal_drift", 1.7)], 5.0, ("magnetization",)).verdict == "sensor_gain_drift"
     assert decide([best, _at_bound("eddy_current", 1.1, "k_e")], 5.0, ("magnetization",)).verdict == \
         "sensor_gain_drift"
-    also = _at_bound("thermal_drift", 1.1, other_reasons=["heating disagrees across 3 time blocks"])
+    also = _at_bound("thermal_drift", 1.1, other_reasons=["the fitted input map is not monotone"])
+    assert not also.plausibility.only_form_doubts
     decision = decide([best, also], 5.0, ("magnetization",))
     assert decision.verdict == "sensor_gain_drift"
     assert any("thermal_drift" in note and "was not named" in note for note in decision.notes)
+
+
+def _disagreeing(effect, heldout_rmse, parameter="heating"):
+    """A partial explanation set aside because its main ``parameter`` disagrees across the time blocks (check 2)."""
+    candidate = _partial(effect, heldout_rmse)
+    candidate.plausibility = Plausibility()
+    candidate.plausibility.reject(f"{parameter} disagrees across 3 time blocks of the record (1, 3, 3)",
+                                  disagreeing=parameter)
+    return candidate
+
+
+def test_a_confusable_family_whose_main_parameter_disagrees_across_blocks_and_predicts_better_ties():
+    """Heating through a network with two time constants, fitted by one, gives each time block its own heating
+    (check 2) while predicting the held-out block better than a sensor's gain drift: a doubt about the heating
+    family's form, not its slot, so the gain drift is not named alone; the note names the disagreeing parameter.
+    Predicting worse, or with a doubt of another kind beside it, it does not tie."""
+    best = _partial("sensor_gain_drift", 1.6)
+    decision = decide([best, _disagreeing("thermal_drift", 1.2)], 5.0, ("magnetization",))
+    assert decision.verdict == "ambiguous"
+    assert [c.effect for c in decision.tied] == ["sensor_gain_drift", "thermal_drift"]
+    assert any("heating disagrees across time blocks" in note for note in decision.notes)
+    assert decide([best, _disagreeing("thermal_drift", 1.7)], 5.0, ("magnetization",)).verdict == "sensor_gain_drift"
+    both_doubts = _disagreeing("thermal_drift", 1.2)
+    both_doubts.plausibility.reject("beta_k = 0.05 sits at the bound of its physical range", at_bound="beta_k")
+    assert both_doubts.plausibility.only_form_doubts
+    assert decide([best, both_doubts], 5.0, ("magnetization",)).verdict == "ambiguous"
+    other = _disagreeing("thermal_drift", 1.2)
+    other.plausibility.reject("a bias field of 900 A/m would shift the recorded loop")
+    assert decide([best, other], 5.0, ("magnetization",)).verdict == "sensor_gain_drift"
 
 
 def test_the_bound_check_records_which_parameter_sits_at_its_bound():
@@ -409,3 +439,24 @@ def test_the_bound_check_records_which_parameter_sits_at_its_bound():
     inside = Plausibility()
     _check_bounds(inside, effect, SimpleNamespace(model=fit.model, values={"beta_k": 0.02, "tau_th": 100.0}))
     assert inside.plausible and not inside.only_at_bound
+
+
+def test_the_block_check_records_which_main_parameter_disagrees(monkeypatch):
+    """Check 2 tags its rejection with the main parameter, so a doubted tie can tell it from the checks no form of
+    the slot would pass; block estimates that agree leave the candidate plausible."""
+    from types import SimpleNamespace
+
+    from hyst_gym.diagnose import decide as decide_module
+    from hyst_gym.diagnose.parameter import Parameter
+
+    parameters = {"k_e": Parameter("k_e", 1e-3, 0.0, 1.0, "s")}
+    fit = SimpleNamespace(model=SimpleNamespace(parameters=parameters, channels=("magnetization",)),
+                          values={"k_e": 0.01}, uncertainties={"k_e": 1e-4})
+    candidate = SimpleNamespace(effect="eddy_current", fit=fit)
+    for values, plausible in (([0.01, 0.03, 0.09], False), ([0.01, 0.0101, 0.0099], True)):
+        monkeypatch.setattr(decide_module, "block_estimates",
+                            lambda fit, name, noise, blocks, values=values: (values, [1e-4] * 3))
+        out = decide_module.check_plausibility(candidate, {"magnetization": 1.0})
+        assert out.plausible is plausible, out.reasons
+        assert out.disagreeing == ([] if plausible else ["k_e"])
+        assert out.only_form_doubts is (not plausible) and not out.only_at_bound
