@@ -37,8 +37,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..estimation import as_kernel_tuples
-from .kernels import (LikelihoodParams, marginal_sums, marginal_terms, posterior_moments, posterior_step,
-                      posterior_vertex, weight_terms)
+from .kernels import (AliveRows, LikelihoodParams, PruneParams, marginal_sums, marginal_terms, posterior_moments,
+                      posterior_step, posterior_vertex, weight_terms)
 
 #: grid nodes of the start temperature per sub-environment
 POSTERIOR_NODES = 64
@@ -59,6 +59,15 @@ PER_NODE_PARAMS = ("k", "alpha", "Ms", "c")
 #: skip those entries, where numpy's exp takes a slow path (about 10x per entry; most of a concentrated
 #: posterior's nodes lie there)
 EXP_ZERO_BELOW = -746.0
+
+#: a grid node whose log-posterior lies more than this (nats) below its sub-env's best node is dead: its node plant is
+#: no longer simulated (module doc, "Pruning"). Its weight is then 0.0 exactly (its T0 node's marginal lies at most
+#: log(k_nodes) above it, and exp underflows below :data:`EXP_ZERO_BELOW`), and it stays 0.0 unless the node gains
+#: the rest of this gap, about 250 nats, on the best node: evidence the posterior has already seen the other way
+DEAD_GAP = 1000.0
+#: the log-posterior of a dead node: far below any live node's, so that its weight is 0.0, and finite, so that the
+#: log-sum-exp over k of a T0 node whose nodes are all dead is a number (-inf - (-inf) would be NaN)
+DEAD_LOG_POST = -1.0e300
 
 
 def step_threads() -> int:
@@ -92,10 +101,12 @@ class GridPosterior:
     sensors of the task: 0 output or displacement, 1 velocity); ``k_prior``: the task's
     :class:`~hyst_gym.envs.task_spec.PinningPrior` or None; ``nodes``: T0 nodes (default
     :data:`POSTERIOR_NODES`, the first of :data:`K_TASK_NODES` with a k prior); ``k_nodes``: 1 (k known at the
-    config's) or >= 3 (over the k prior; default the second of :data:`K_TASK_NODES` with a k prior)."""
+    config's) or >= 3 (over the k prior; default the second of :data:`K_TASK_NODES` with a k prior); ``prune``: stop
+    simulating the dead nodes (module doc, "Pruning"; False: every node plant is simulated at every step, the
+    reference the pruned posterior is tested against)."""
 
     def __init__(self, config, channels, n: int, k_prior=None, nodes: int | None = None,
-                 k_nodes: int | None = None):
+                 k_nodes: int | None = None, prune: bool = True):
         from .core import IDENTIFICATION, BatchSimulator
 
         nodes, k_nodes = grid_sizes(k_prior, nodes, k_nodes)
@@ -120,15 +131,19 @@ class GridPosterior:
         self._fresh_plants = self._start_state(per)
         self.log_post = np.zeros((self.n, self.nodes, self.k_nodes))
         self._commands = np.zeros((self.n * per, 2))
+        self.prune = bool(prune)
+        self._alive = AliveRows(first=np.zeros(self.n, dtype=np.int64),
+                                stop=np.full(self.n, self.nodes, dtype=np.int64))
+        self._pruning = PruneParams(nodes=self.nodes, k_nodes=self.k_nodes, dead_gap=DEAD_GAP if prune else np.inf,
+                                    dead_log_post=DEAD_LOG_POST)
         # The compiled step (kernels.posterior_step) moves only the node plants: the simulator's estimator
         # bank, score, info and observation are never read here, and skipping them is most of the step's cost.
         channels = np.array(self.channels, dtype=np.int64)
         self._likelihood = LikelihoodParams(channels=channels, scales=self.sim.scales[channels],
                                             variance=float(config.output_noise) ** 2,
                                             per=per)
-        self._node_command = np.zeros(self.n * per)  # the kernel's scratch (field commands)
-        self._kernel_args = (self._node_command, np.ones(self.n * per, dtype=bool),
-                             *as_kernel_tuples(self.sim._plant, self.sim._plant_params, self._likelihood))
+        self._kernel_args = as_kernel_tuples(self._alive, self.sim._plant, self.sim._plant_params, self._likelihood,
+                                             self._pruning)
         self._blocks = self._split(per)
         self._pool, self._pool_pid, self._pool_lock = None, None, threading.Lock()
         self._no_rows = np.zeros(0, dtype=np.int64)
@@ -186,21 +201,30 @@ class GridPosterior:
             nodes = slice(lo * per, hi * per)
             block_plant = plant._replace(**{name: getattr(plant, name)[nodes] for name in plant._fields})
             block_params = params._replace(**{name: getattr(params, name)[nodes] for name in PER_NODE_PARAMS})
-            blocks.append((slice(lo, hi), (self._node_command[nodes], self._kernel_args[1][nodes],
-                                           *as_kernel_tuples(block_plant, block_params, self._likelihood)),
+            block_alive = AliveRows(first=self._alive.first[lo:hi], stop=self._alive.stop[lo:hi])
+            blocks.append((slice(lo, hi), as_kernel_tuples(block_alive, block_plant, block_params, self._likelihood,
+                                                           self._pruning),
                            self._scratch_for(hi - lo)))
         return blocks
 
     def restart(self, rows) -> None:
-        """New episodes in sub-envs ``rows``: every node simulator at its grid node (:meth:`_start_state`), the
-        log-prior."""
+        """New episodes in sub-envs ``rows``: every node simulator at its grid node (:meth:`_start_state`) and alive,
+        the log-prior."""
         rows = np.asarray(rows, dtype=np.int64)
         for view, start in self._fresh_plants:
             view[rows] = start
+        self._alive.first[rows] = 0
+        self._alive.stop[rows] = self.nodes
         self.log_post[rows] = self.log_prior[:, None]
         if self._results_valid:  # a restarted row's results are the start's (a row's depend on that row alone)
             for name, start in self._start_results.items():
                 self._results[name][rows] = start
+
+    def alive(self) -> np.ndarray:
+        """Whether each grid node's plant is simulated, (n, nodes, k_nodes) bool (module doc, "Pruning")."""
+        rows = np.arange(self.nodes)
+        alive = (rows >= self._alive.first[:, None]) & (rows < self._alive.stop[:, None])
+        return np.repeat(alive[:, :, None], self.k_nodes, axis=2)
 
     def update(self, measured: np.ndarray, rows) -> None:
         """Add the log-likelihood of the normalized outputs ``measured`` ((n, channels), the sensors'
@@ -277,8 +301,9 @@ class GridPosterior:
         values, index = scratch["gather"]
         if self.k_nodes > 1:  # with one k node, log_post is a view of the joint (the node itself: peak + log(1))
             peak, sums = scratch["peak"], scratch["sums"]
-            count = marginal_terms(joint, peak, EXP_ZERO_BELOW, values, index)
-            marginal_sums(np.exp(values[:count]), index, scratch["terms"], sums)
+            first, stop = self._alive.first[rows], self._alive.stop[rows]
+            count = marginal_terms(joint, peak, EXP_ZERO_BELOW, first, stop, values, index)
+            marginal_sums(np.exp(values[:count]), index, first, stop, scratch["terms"], sums)
             np.add(peak, np.log(sums), out=log_post)
         count = weight_terms(log_post, EXP_ZERO_BELOW, values, index)
         weights, mean = results["weights"][rows], results["mean"][rows]
