@@ -155,7 +155,9 @@ def finish_plants(field_from, active, plant, params):
 @njit(cache=True, inline="always")
 def finish_transducers(first, stop, plant, params):
     """The transducers of plants ``first..stop-1`` over the step (their drive from M at the step's start,
-    ``plant.magnetization_prev``, to M at its end) and their noise-free outputs into ``plant.measured``."""
+    ``plant.magnetization_prev``, to M at its end) and their noise-free outputs into ``plant.measured``. A loop
+    over a range of plants, not a helper per plant: inlined per plant, the helper ran about 10x slower in
+    :func:`posterior_step` (measured)."""
     state, state_next, measured = plant.state, plant.state_next, plant.measured
     magnetization, magnetization_prev = plant.magnetization, plant.magnetization_prev
     drive_gain = params.drive_gain
