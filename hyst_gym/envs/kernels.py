@@ -85,6 +85,13 @@ EnvParams = namedtuple("EnvParams", ["tolerance", "plant", "score", "layout"])
 #: columns it reads, their normalization scales, the noise variance sigma**2 (normalized units) and the node
 #: simulators per sub-env (one row each of the node plants' :class:`PlantState`).
 LikelihoodParams = namedtuple("LikelihoodParams", ["channels", "scales", "variance", "per"])
+#: The alive rows of a grid posterior's sub-envs (its pruning state, changed in place): per sub-env (n,) the first
+#: T0 node whose node plants are simulated and the one past the last (int64); the nodes outside are dead
+#: (:func:`prune_rows`).
+AliveRows = namedtuple("AliveRows", ["first", "stop"])
+#: A grid posterior's pruning: its T0 and k nodes, the gap (nats) below the sub-env's best node past which a node
+#: is dead (inf: none dies) and the log-posterior a dead node is given (finite: see the grid posterior's module doc).
+PruneParams = namedtuple("PruneParams", ["nodes", "k_nodes", "dead_gap", "dead_log_post"])
 
 
 # plant_step, score_step, clip_actions, finish_step and the estimator's estimator_step,
@@ -113,52 +120,28 @@ def limit_fields(command, plant, params):
     """The first part of :func:`plant_step` (named ``plant`` and ``params``): the field H1 within the field
     and slew limits into ``plant.field``, M kept as the step's start; returns H0 (a new array)."""
     field, magnetization, magnetization_prev = plant.field, plant.magnetization, plant.magnetization_prev
-    field_limit, max_change = params.field_limit, params.max_change
     field_from = field.copy()
     for i in range(field.shape[0]):
-        target = min(max(command[i], -field_limit), field_limit)
-        field[i] = min(max(target, field_from[i] - max_change), field_from[i] + max_change)
+        field[i] = limited_field(command[i], field_from[i], params)
         magnetization_prev[i] = magnetization[i]
     return field_from
+
+
+@njit(cache=True, inline="always")
+def limited_field(command, field_from, params):
+    """H1 of one plant (A/m): the command within the field limit, then within the slew limit of H0 ``field_from``."""
+    target = min(max(command, -params.field_limit), params.field_limit)
+    return min(max(target, field_from - params.max_change), field_from + params.max_change)
 
 
 @njit(cache=True, inline="always")
 def finish_plants(field_from, active, plant, params):
     """The part of :func:`plant_step` after model (6) has moved M (named ``plant`` and ``params``): the
     transducer, the thermal model, a(T) and the (noisy) measurement."""
-    field, magnetization, magnetization_prev, state = plant.field, plant.magnetization, plant.magnetization_prev, \
-        plant.state
-    temperature, steps, measured, measured_temperature = plant.temperature, plant.steps, plant.measured, \
-        plant.measured_temperature
-    n = field.shape[0]
-    s = state.shape[1]
-    drive_gain = params.drive_gain
-    for i in range(n):
-        m0 = magnetization_prev[i]
-        m1 = magnetization[i]
-        if params.quadratic:
-            u0 = drive_gain * m0 * m0
-            u1 = drive_gain * m1 * m1
-        else:
-            u0 = drive_gain * m0
-            u1 = drive_gain * m1
-        lti_step(params.phi, params.gamma0, params.gamma1, state[i], u0, u1, plant.state_next[i])
-        for r in range(s):
-            state[i, r] = plant.state_next[i, r]
-        if params.drifting:
-            drift_rate = plant.drift_rate[i]
-            power = params.power_per_h2 * mean_square_linear_kernel(field_from[i], field[i])
-            amb0 = plant.ambient0[i] + drift_rate * (steps[i] * params.dt)
-            amb1 = amb0 + drift_rate * params.dt
-            temperature[i] = temperature_step_kernel(temperature[i], amb0, amb1,
-                                                     params.thermal_resistance * power - drift_rate * params.tau,
-                                                     params.decay)
-        steps[i] += 1
-        plant.a_true[i] = a_law_kernel(params.a_reference, temperature[i], params.t_reference)
-        measured[i, 0] = state[i, params.output_index]
-        if params.velocity_index >= 0:
-            measured[i, 1] = state[i, params.velocity_index]
-        measured_temperature[i] = temperature[i]
+    measured, measured_temperature = plant.measured, plant.measured_temperature
+    finish_transducers(0, plant.field.shape[0], plant, params)
+    for i in range(plant.field.shape[0]):
+        finish_thermal(i, field_from[i], plant.field[i], plant, params)
         if params.noisy and active[i]:
             p = plant.noise_pos[i]
             noise, noise_sigma = plant.noise, params.noise_sigma
@@ -167,6 +150,51 @@ def finish_plants(field_from, active, plant, params):
             if params.temperature_sensor:
                 measured_temperature[i] += noise_sigma[measured.shape[1]] * noise[i, p, measured.shape[1]]
             plant.noise_pos[i] = p + 1
+
+
+@njit(cache=True, inline="always")
+def finish_transducers(first, stop, plant, params):
+    """The transducers of plants ``first..stop-1`` over the step (their drive from M at the step's start,
+    ``plant.magnetization_prev``, to M at its end) and their noise-free outputs into ``plant.measured``. A loop
+    over a range of plants, not a helper per plant: inlined per plant, the helper ran about 10x slower in
+    :func:`posterior_step` (measured)."""
+    state, state_next, measured = plant.state, plant.state_next, plant.measured
+    magnetization, magnetization_prev = plant.magnetization, plant.magnetization_prev
+    drive_gain = params.drive_gain
+    s = state.shape[1]
+    for i in range(first, stop):
+        m0 = magnetization_prev[i]
+        m1 = magnetization[i]
+        if params.quadratic:
+            u0 = drive_gain * m0 * m0
+            u1 = drive_gain * m1 * m1
+        else:
+            u0 = drive_gain * m0
+            u1 = drive_gain * m1
+        lti_step(params.phi, params.gamma0, params.gamma1, state[i], u0, u1, state_next[i])
+        for r in range(s):
+            state[i, r] = state_next[i, r]
+        measured[i, 0] = state[i, params.output_index]
+        if params.velocity_index >= 0:
+            measured[i, 1] = state[i, params.velocity_index]
+
+
+@njit(cache=True, inline="always")
+def finish_thermal(i, field_from, field_to, plant, params):
+    """The thermal model of plant ``i`` over the step (the field from ``field_from`` to ``field_to``, A/m), its step
+    counter, a(T) and its noise-free measured temperature. Reads nothing of the magnetic or transducer state."""
+    temperature, steps = plant.temperature, plant.steps
+    if params.drifting:
+        drift_rate = plant.drift_rate[i]
+        power = params.power_per_h2 * mean_square_linear_kernel(field_from, field_to)
+        amb0 = plant.ambient0[i] + drift_rate * (steps[i] * params.dt)
+        amb1 = amb0 + drift_rate * params.dt
+        temperature[i] = temperature_step_kernel(temperature[i], amb0, amb1,
+                                                 params.thermal_resistance * power - drift_rate * params.tau,
+                                                 params.decay)
+    steps[i] += 1
+    plant.a_true[i] = a_law_kernel(params.a_reference, temperature[i], params.t_reference)
+    plant.measured_temperature[i] = temperature[i]
 
 
 @njit(cache=True, inline="always")
@@ -356,52 +384,97 @@ def excitation_step(actions, active, plant, view, buffers, params, estimator):
 
 
 @background_kernel(nogil=True)
-def posterior_step(updating, measured, log_post, field, stepping, command, active, plant, plant_params,
-                   likelihood):
+def posterior_step(updating, measured, log_post, field, stepping, alive, plant, plant_params, likelihood, pruning):
     """One step of a grid posterior's node simulators (the plants only: no estimator bank, score or
-    observation), with its log-likelihood update first. It runs without the GIL: the grid posterior may step
-    two disjoint blocks of sub-envs (views of its arrays) in two threads at once.
+    observation), with its log-likelihood update and its pruning first. It runs without the GIL: the grid posterior
+    may step two disjoint blocks of sub-envs (views of its arrays) in two threads at once.
 
-    ``updating``: (n,) bool, the sub-envs whose ``log_post`` rows ((n, per), node-major as the node plants) gain the
-    Gaussian log-likelihood ``-0.5*sum(residual**2)/sigma**2`` of their normalized outputs ``measured``
-    ((n, channels)) against the node plants' noise-free outputs (before this step). Then, if ``stepping``,
-    every node plant of sub-env ``i`` takes the field command ``clip(field[i], -1, 1)*field_limit``
-    (:func:`plant_step`, ``command`` its scratch, ``active`` all True). ``plant`` (:class:`PlantState`),
-    ``plant_params`` (:class:`PlantParams`) and ``likelihood`` (:class:`LikelihoodParams`) come as plain
-    tuples. Returns 1 (nothing changed) if a field is NaN, else 0."""
-    like, nodes = LikelihoodParams(*likelihood), PlantState(*plant)
+    ``updating``: (n,) bool, the sub-envs whose ``log_post`` rows ((n, per), node-major as the node plants: node
+    ``t*k_nodes + q`` is T0 node t, k node q) gain, at their alive nodes, the Gaussian log-likelihood
+    ``-0.5*sum(residual**2)/sigma**2`` of their normalized outputs ``measured`` ((n, channels)) against the node
+    plants' noise-free outputs (before this step); then :func:`prune_rows` narrows their alive rows. Then, if
+    ``stepping``, every node plant of sub-env ``i`` takes the field command ``clip(field[i], -1, 1)*field_limit``
+    (:func:`plant_step`'s arithmetic, without noise: the node plants are noise-free) at its alive nodes; a dead node
+    plant stays as it was, but for the *width nodes* (k node 0 of T0 nodes 0 and 1), whose field, thermal model and
+    a(T) step on (the spread's cell width reads a there: :func:`posterior_moments`). ``alive``
+    (:class:`AliveRows`), ``plant`` (:class:`PlantState`), ``plant_params`` (:class:`PlantParams`), ``likelihood``
+    (:class:`LikelihoodParams`) and ``pruning`` (:class:`PruneParams`) come as plain tuples. Returns 1 (nothing
+    changed) if a field is NaN, else 0."""
+    like, nodes, rows, prune = LikelihoodParams(*likelihood), PlantState(*plant), AliveRows(*alive), \
+        PruneParams(*pruning)
     if stepping:
         for i in range(field.shape[0]):
             if field[i] != field[i]:
                 return 1
-    per, channels, scales, variance = like.per, like.channels, like.scales, like.variance
+    per, channels, scales, variance, k_nodes = like.per, like.channels, like.scales, like.variance, prune.k_nodes
     predicted = nodes.measured
     for i in range(log_post.shape[0]):
         if not updating[i]:
             continue
-        for j in range(per):
+        for j in range(rows.first[i] * k_nodes, rows.stop[i] * k_nodes):
             row = i * per + j
             total = 0.0
             for c in range(channels.shape[0]):
                 residual = measured[i, c] - predicted[row, channels[c]] / scales[c]
                 total += residual * residual
             log_post[i, j] -= 0.5 * total / variance
-    if stepping:
-        params = PlantParams(*plant_params)
-        for i in range(field.shape[0]):
-            value = min(max(field[i], -1.0), 1.0) * params.field_limit
-            for j in range(per):
-                command[i * per + j] = value
-        field_from = limit_fields(command, nodes, params)
-        # a sub-env's node plants share their field path (same commands since their common restart): model (6)
-        # moves them as one bank (advance_shared, the arithmetic of advance_each, vectorized over the nodes)
-        for i in range(field.shape[0]):
-            lo, hi = i * per, (i + 1) * per
-            advance_shared(nodes.magnetization[lo:hi], field_from[lo], nodes.field[lo], nodes.a_true[lo:hi],
-                           params.k[lo:hi], params.alpha[lo:hi], params.Ms[lo:hi], params.c[lo:hi], params.kind,
-                           params.max_field_step)
-        finish_plants(field_from, active, nodes, params)
+        prune_rows(i, log_post[i], rows, prune)
+    if not stepping:
+        return 0
+    params = PlantParams(*plant_params)
+    for i in range(field.shape[0]):
+        # a sub-env's node plants share their field path (same commands since their common restart): one H0 and H1
+        # for all of them, and model (6) moves its alive ones as one bank (advance_shared, the arithmetic of
+        # advance_each, vectorized over the nodes)
+        base = i * per
+        field_from = nodes.field[base]  # current: node 0 is a width node
+        field_to = limited_field(min(max(field[i], -1.0), 1.0) * params.field_limit, field_from, params)
+        lo, hi = base + rows.first[i] * k_nodes, base + rows.stop[i] * k_nodes
+        for j in range(lo, hi):
+            nodes.field[j] = field_to
+            nodes.magnetization_prev[j] = nodes.magnetization[j]
+        advance_shared(nodes.magnetization[lo:hi], field_from, field_to, nodes.a_true[lo:hi], params.k[lo:hi],
+                       params.alpha[lo:hi], params.Ms[lo:hi], params.c[lo:hi], params.kind, params.max_field_step)
+        finish_transducers(lo, hi, nodes, params)
+        for j in range(lo, hi):
+            finish_thermal(j, field_from, field_to, nodes, params)
+        for j in (base, base + k_nodes):  # the width nodes, where dead
+            if j < lo or j >= hi:
+                nodes.field[j] = field_to
+                finish_thermal(j, field_from, field_to, nodes, params)
     return 0
+
+
+@njit(cache=True, inline="always")
+def prune_rows(i, log_post, alive, prune):
+    """Narrow the alive rows of sub-env ``i`` (``alive``, an :class:`AliveRows`; ``prune`` a :class:`PruneParams`)
+    after its log-posterior ``log_post`` (per,) was updated: to the T0 rows of every node within ``prune.dead_gap``
+    of its best node, widened by one row on each side (where a row is the first or last T0 node, by the two rows the
+    parabola vertex reads beside it: the vertex of :func:`posterior_vertex` clips its centre to the interior), never
+    beyond the old alive rows (a dead row's node plants were not simulated). The nodes of the rows that die get
+    ``prune.dead_log_post``. Nothing changes where no node is within the gap (a NaN log-posterior)."""
+    k_nodes = prune.k_nodes
+    first, stop = alive.first[i], alive.stop[i]
+    best = log_post[first * k_nodes]
+    for j in range(first * k_nodes + 1, stop * k_nodes):
+        if log_post[j] > best:
+            best = log_post[j]
+    floor = best - prune.dead_gap
+    lowest, highest = stop, first - 1
+    for t in range(first, stop):
+        for q in range(k_nodes):
+            if log_post[t * k_nodes + q] >= floor:
+                lowest, highest = min(lowest, t), max(highest, t)
+                break
+    if highest < lowest:
+        return
+    new_first = max(first, min(max(lowest, 1), prune.nodes - 2) - 1)
+    new_stop = min(stop, min(max(highest, 1), prune.nodes - 2) + 2)
+    for j in range(first * k_nodes, new_first * k_nodes):
+        log_post[j] = prune.dead_log_post
+    for j in range(new_stop * k_nodes, stop * k_nodes):
+        log_post[j] = prune.dead_log_post
+    alive.first[i], alive.stop[i] = new_first, new_stop
 
 
 @background_kernel(nogil=True)
@@ -520,16 +593,20 @@ def _maximum(current, value):
 
 
 @background_kernel(nogil=True)
-def marginal_terms(joint, peak, threshold, values, index):
+def marginal_terms(joint, peak, threshold, first, stop, values, index):
     """The first half of the log-sum-exp over k of a grid posterior's joint log-posterior ``joint`` (n, nodes,
     k_nodes): ``peak`` (n, nodes) its maximum over k (``joint.max(axis=2)``), and of ``joint - peak`` the entries
     that are not ``<= threshold`` (NaN included) in order into ``values``, their flat positions into ``index``;
-    returns how many. Their exp (numpy's) goes to :func:`marginal_sums`."""
+    returns how many. Their exp (numpy's) goes to :func:`marginal_sums`. Only the alive T0 nodes
+    ``first[i]..stop[i]-1`` of sub-env ``i`` have terms; a dead one's peak is its dead nodes' log-posterior."""
     n, nodes, k_nodes = joint.shape
     count = 0
     for i in range(n):
         for t in range(nodes):
             top = joint[i, t, 0]
+            if t < first[i] or t >= stop[i]:
+                peak[i, t] = top
+                continue
             for q in range(1, k_nodes):
                 top = _maximum(top, joint[i, t, q])
             peak[i, t] = top
@@ -543,9 +620,10 @@ def marginal_terms(joint, peak, threshold, values, index):
 
 
 @background_kernel(nogil=True)
-def marginal_sums(exps, index, terms, sums):
+def marginal_sums(exps, index, first, stop, terms, sums):
     """The second half: ``terms`` (n*nodes*k_nodes,) the exp of ``joint - peak`` (``exps`` at ``index``, 0.0
-    elsewhere, where it underflows), and ``sums`` (n, nodes) its sum over k in numpy's order."""
+    elsewhere, where it underflows), and ``sums`` (n, nodes) its sum over k in numpy's order; 1.0 at a dead T0 node
+    (outside ``first[i]..stop[i]-1``: its marginal is then its peak, the dead nodes' log-posterior)."""
     for j in range(terms.shape[0]):
         terms[j] = 0.0
     for j in range(exps.shape[0]):
@@ -554,7 +632,10 @@ def marginal_sums(exps, index, terms, sums):
     k_nodes = terms.shape[0] // (n * nodes)
     for i in range(n):
         for t in range(nodes):
-            sums[i, t] = pairwise_sum(terms, (i * nodes + t) * k_nodes, k_nodes)
+            if t < first[i] or t >= stop[i]:
+                sums[i, t] = 1.0
+            else:
+                sums[i, t] = pairwise_sum(terms, (i * nodes + t) * k_nodes, k_nodes)
 
 
 @background_kernel(nogil=True)
@@ -645,10 +726,12 @@ def identification_step(actions, active, plant, view, buffers, params, bank, ban
     return 0
 
 
-__all__ = ["EnvParams", "EstimateView", "ObservationLayout", "PlantParams", "PlantState", "ScoreParams", "StepBuffers",
-           "LikelihoodParams", "clip_actions", "excitation_step", "fill_info", "fill_observation", "finish_step",
-           "finish_plants", "identification_step", "limit_fields", "marginal_sums", "marginal_terms", "pairwise_sum",
-           "plant_step", "posterior_moments", "posterior_step", "posterior_vertex", "score_step", "weight_terms"]
+__all__ = ["AliveRows", "EnvParams", "EstimateView", "LikelihoodParams", "ObservationLayout", "PlantParams",
+           "PlantState", "PruneParams", "ScoreParams", "StepBuffers", "clip_actions", "excitation_step", "fill_info",
+           "fill_observation", "finish_plants", "finish_step", "finish_thermal", "finish_transducers",
+           "identification_step", "limit_fields", "limited_field", "marginal_sums", "marginal_terms", "pairwise_sum",
+           "plant_step", "posterior_moments", "posterior_step", "posterior_vertex", "prune_rows", "score_step",
+           "weight_terms"]
 
 
 #: printed once per process, on stderr, before the first environment compiles its kernels (HYST_GYM_COMPILE=foreground)

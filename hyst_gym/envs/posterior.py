@@ -19,13 +19,41 @@ weaker estimator). The estimate after :meth:`GridPosterior.step` with the field 
 the end of step t from the outputs up to step t - 1. Its spread is the posterior standard deviation of
 a over the T0 nodes (A/m).
 
+Pruning (same estimate, spread and mean bit for bit, ``tests/envs/test_posterior_pruning.py``). Under an informative
+input most nodes' log-posterior falls hundreds of nats below the best node's within a few dozen steps, where their
+weight is exactly 0.0. A node more than :data:`DEAD_GAP` (1000 nats) below its sub-env's best node is *dead*: its node
+plant is no longer simulated and its log-posterior is :data:`DEAD_LOG_POST`. A sub-env keeps an interval of alive T0
+nodes (:class:`~.kernels.AliveRows`; a T0 node's k nodes live and die together, as its marginal over k reads them
+all): the T0 nodes of its nodes within the gap, widened by one T0 node on each side, so that the values the vertex
+reads (the marginal at the best T0 node and its neighbours, the joint's 3 x 3 about its best node) are always
+current. It only narrows; a restart (and the vector env's auto-reset) revives every node of its sub-env, and
+nothing else does. A dead node's weight in the unpruned posterior is 0.0, and it stays 0.0 unless the node gains
+about 250 nats on the best one (:data:`DEAD_GAP` less the 746 of exp's underflow, :data:`EXP_ZERO_BELOW`, and
+the log(k_nodes) of the marginal); a dead T0 node is read by the vertex only once its neighbour, more than
+:data:`DEAD_GAP` below the best node when it died, has become the best: evidence of that size against what the
+posterior has seen, so the pruned posterior reports the unpruned one's numbers. Measured: bit for bit at every
+step of 256 episodes of each of the suite's tuned agents (thermostat, tuned sine, proportional, ramp_hold,
+bang_hold, idle) and of 1,000 steps x 256 sub-envs of random actions, on this task and on HotCalibrate-v0 (no
+value differed). The decision reads its sub-env's numbers alone: it is the same in any split into threads. The
+*width nodes* (k node 0 of T0 nodes 0 and 1) step their field and thermal model on when dead: the spread's cell
+width reads a there. Alive share of the node-steps (same runs): 31-38 % under the tuned agents on the k task,
+25-30 % on HotCalibrate-v0, 100 % under ``idle`` (no excitation, nothing learned), and 70 % and 67 % under the
+benchmark's random actions (the field wanders +-2500 A/m a step about 0 and reveals little).
+
 Speed (same numbers bit for bit, ``tests/envs/test_posterior_speed.py``). Nearly all of a calibration
 env's step is model (6) in the node plants: n*nodes*k_nodes of them (65,536 at n = 1024 with 64 nodes, 221,184
-with the k task's 24 x 9). A restart copies a start state stored once (a node's start draws nothing); from
-:data:`SPLIT_MIN_NODES` node plants the step runs in two blocks of sub-envs in two threads (its kernels release
-the GIL; a row's numbers depend on its row alone); the marginal, weights, mean, spread and estimate are compiled
-kernels around numpy's exp and log (numpy's order of summation kept, and exp left out where it underflows to 0,
-numpy's slow path).
+with the k task's 24 x 9), about 37 ns a node-step; pruning steps only the alive ones. A restart copies a start
+state stored once (a node's start draws nothing); from :data:`SPLIT_MIN_NODES` node plants the step runs in two
+blocks of sub-envs in two threads (its kernels release the GIL; a row's numbers depend on its row alone); the
+marginal, weights, mean, spread and estimate are compiled kernels around numpy's exp and log (numpy's order of
+summation kept, exp left out where it underflows to 0, numpy's slow path, and dead T0 nodes left out). Measured at
+n = 1024, before and after pruning alternately in one run (1-min load 1.4-1.9 from another job, 2 cores): the k
+task 112,000-135,000 -> 147,000-151,000 steps/s under random actions (the benchmark's input), 126,000-131,000 ->
+181,000-191,000 under a sine of 40 + 40 kA/m at 0.5 Hz (HotCalibrate-v0's tuned open-loop design); HotCalibrate-v0
+269,000-275,000 -> 258,000-284,000 under random actions (unchanged within the noise), 278,000-297,000 ->
+271,000-349,000 under the sine. **The k task stays below the suite's target of 200,000 at n = 1024** under random
+actions: 70 % of its node-steps stay alive there, and the rest of the env's step (about 2 ms at n = 1024) does
+not shrink.
 """
 
 from __future__ import annotations
@@ -37,8 +65,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..estimation import as_kernel_tuples
-from .kernels import (LikelihoodParams, marginal_sums, marginal_terms, posterior_moments, posterior_step,
-                      posterior_vertex, weight_terms)
+from .kernels import (AliveRows, LikelihoodParams, PruneParams, marginal_sums, marginal_terms, posterior_moments,
+                      posterior_step, posterior_vertex, weight_terms)
 
 #: grid nodes of the start temperature per sub-environment
 POSTERIOR_NODES = 64
@@ -59,6 +87,15 @@ PER_NODE_PARAMS = ("k", "alpha", "Ms", "c")
 #: skip those entries, where numpy's exp takes a slow path (about 10x per entry; most of a concentrated
 #: posterior's nodes lie there)
 EXP_ZERO_BELOW = -746.0
+
+#: a grid node whose log-posterior lies more than this (nats) below its sub-env's best node is dead: its node plant is
+#: no longer simulated (module doc, "Pruning"). Its weight is then 0.0 exactly (its T0 node's marginal lies at most
+#: log(k_nodes) above it, and exp underflows below :data:`EXP_ZERO_BELOW`), and it stays 0.0 unless the node gains
+#: the rest of this gap, about 250 nats, on the best node: evidence the posterior has already seen the other way
+DEAD_GAP = 1000.0
+#: the log-posterior of a dead node: far below any live node's, so that its weight is 0.0, and finite, so that the
+#: log-sum-exp over k of a T0 node whose nodes are all dead is a number (-inf - (-inf) would be NaN)
+DEAD_LOG_POST = -1.0e300
 
 
 def step_threads() -> int:
@@ -92,10 +129,12 @@ class GridPosterior:
     sensors of the task: 0 output or displacement, 1 velocity); ``k_prior``: the task's
     :class:`~hyst_gym.envs.task_spec.PinningPrior` or None; ``nodes``: T0 nodes (default
     :data:`POSTERIOR_NODES`, the first of :data:`K_TASK_NODES` with a k prior); ``k_nodes``: 1 (k known at the
-    config's) or >= 3 (over the k prior; default the second of :data:`K_TASK_NODES` with a k prior)."""
+    config's) or >= 3 (over the k prior; default the second of :data:`K_TASK_NODES` with a k prior); ``prune``: stop
+    simulating the dead nodes (module doc, "Pruning"; False: every node plant is simulated at every step, the
+    reference the pruned posterior is tested against)."""
 
     def __init__(self, config, channels, n: int, k_prior=None, nodes: int | None = None,
-                 k_nodes: int | None = None):
+                 k_nodes: int | None = None, prune: bool = True):
         from .core import IDENTIFICATION, BatchSimulator
 
         nodes, k_nodes = grid_sizes(k_prior, nodes, k_nodes)
@@ -120,15 +159,19 @@ class GridPosterior:
         self._fresh_plants = self._start_state(per)
         self.log_post = np.zeros((self.n, self.nodes, self.k_nodes))
         self._commands = np.zeros((self.n * per, 2))
+        self.prune = bool(prune)
+        self._alive = AliveRows(first=np.zeros(self.n, dtype=np.int64),
+                                stop=np.full(self.n, self.nodes, dtype=np.int64))
+        self._pruning = PruneParams(nodes=self.nodes, k_nodes=self.k_nodes, dead_gap=DEAD_GAP if prune else np.inf,
+                                    dead_log_post=DEAD_LOG_POST)
         # The compiled step (kernels.posterior_step) moves only the node plants: the simulator's estimator
         # bank, score, info and observation are never read here, and skipping them is most of the step's cost.
         channels = np.array(self.channels, dtype=np.int64)
         self._likelihood = LikelihoodParams(channels=channels, scales=self.sim.scales[channels],
                                             variance=float(config.output_noise) ** 2,
                                             per=per)
-        self._node_command = np.zeros(self.n * per)  # the kernel's scratch (field commands)
-        self._kernel_args = (self._node_command, np.ones(self.n * per, dtype=bool),
-                             *as_kernel_tuples(self.sim._plant, self.sim._plant_params, self._likelihood))
+        self._kernel_args = as_kernel_tuples(self._alive, self.sim._plant, self.sim._plant_params, self._likelihood,
+                                             self._pruning)
         self._blocks = self._split(per)
         self._pool, self._pool_pid, self._pool_lock = None, None, threading.Lock()
         self._no_rows = np.zeros(0, dtype=np.int64)
@@ -186,21 +229,30 @@ class GridPosterior:
             nodes = slice(lo * per, hi * per)
             block_plant = plant._replace(**{name: getattr(plant, name)[nodes] for name in plant._fields})
             block_params = params._replace(**{name: getattr(params, name)[nodes] for name in PER_NODE_PARAMS})
-            blocks.append((slice(lo, hi), (self._node_command[nodes], self._kernel_args[1][nodes],
-                                           *as_kernel_tuples(block_plant, block_params, self._likelihood)),
+            block_alive = AliveRows(first=self._alive.first[lo:hi], stop=self._alive.stop[lo:hi])
+            blocks.append((slice(lo, hi), as_kernel_tuples(block_alive, block_plant, block_params, self._likelihood,
+                                                           self._pruning),
                            self._scratch_for(hi - lo)))
         return blocks
 
     def restart(self, rows) -> None:
-        """New episodes in sub-envs ``rows``: every node simulator at its grid node (:meth:`_start_state`), the
-        log-prior."""
+        """New episodes in sub-envs ``rows``: every node simulator at its grid node (:meth:`_start_state`) and alive,
+        the log-prior."""
         rows = np.asarray(rows, dtype=np.int64)
         for view, start in self._fresh_plants:
             view[rows] = start
+        self._alive.first[rows] = 0
+        self._alive.stop[rows] = self.nodes
         self.log_post[rows] = self.log_prior[:, None]
         if self._results_valid:  # a restarted row's results are the start's (a row's depend on that row alone)
             for name, start in self._start_results.items():
                 self._results[name][rows] = start
+
+    def alive(self) -> np.ndarray:
+        """Whether each grid node's plant is simulated, (n, nodes, k_nodes) bool (module doc, "Pruning")."""
+        rows = np.arange(self.nodes)
+        alive = (rows >= self._alive.first[:, None]) & (rows < self._alive.stop[:, None])
+        return np.repeat(alive[:, :, None], self.k_nodes, axis=2)
 
     def update(self, measured: np.ndarray, rows) -> None:
         """Add the log-likelihood of the normalized outputs ``measured`` ((n, channels), the sensors'
@@ -277,8 +329,9 @@ class GridPosterior:
         values, index = scratch["gather"]
         if self.k_nodes > 1:  # with one k node, log_post is a view of the joint (the node itself: peak + log(1))
             peak, sums = scratch["peak"], scratch["sums"]
-            count = marginal_terms(joint, peak, EXP_ZERO_BELOW, values, index)
-            marginal_sums(np.exp(values[:count]), index, scratch["terms"], sums)
+            first, stop = self._alive.first[rows], self._alive.stop[rows]
+            count = marginal_terms(joint, peak, EXP_ZERO_BELOW, first, stop, values, index)
+            marginal_sums(np.exp(values[:count]), index, first, stop, scratch["terms"], sums)
             np.add(peak, np.log(sums), out=log_post)
         count = weight_terms(log_post, EXP_ZERO_BELOW, values, index)
         weights, mean = results["weights"][rows], results["mean"][rows]

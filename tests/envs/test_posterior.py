@@ -8,7 +8,7 @@ import pytest
 
 import hyst_gym  # noqa: F401
 from hyst_gym.envs.core import IDENTIFICATION, BatchSimulator
-from hyst_gym.envs.posterior import CONCENTRATED
+from hyst_gym.envs.posterior import CONCENTRATED, EXP_ZERO_BELOW
 
 
 def _slow_nodes(posterior):
@@ -61,7 +61,7 @@ def test_posterior_matches_a_slow_recomputation_per_node(task):
     log_post = np.repeat(posterior.log_prior, posterior.k_nodes).astype(float)
     observation, _ = env.reset(seed=7)
     rng = np.random.default_rng(3)
-    concentrated = []
+    concentrated, dead_gaps = [], []
     for t in range(40):  # up (the field moves 2.5 % of its limit per step), then random
         field = np.ones(1, np.float32) if t < 30 else rng.uniform(-1.0, 1.0, (1,)).astype(np.float32)
         if t > 0:  # the outputs of step t - 1 against the nodes' outputs after it
@@ -71,10 +71,13 @@ def test_posterior_matches_a_slow_recomputation_per_node(task):
         slow.step(np.column_stack([np.full(slow.n, float(field[0])), np.zeros(slow.n)]))
         observation, _, terminated, truncated, info = env.step(field)
         assert not (terminated or truncated)
-        # the same physics kernels move the node plants: their outputs and a agree bit for bit
-        assert np.array_equal(posterior.sim.measured, slow.measured)
-        assert np.array_equal(posterior.sim.a_true, slow.a_true)
-        np.testing.assert_allclose(posterior.log_post.ravel(), log_post, rtol=1e-12, atol=1e-9)
+        # the same physics kernels move the alive node plants (the posterior prunes the dead ones, whose weight is
+        # 0.0: their log-posterior lies far below the best node's): their outputs and a agree bit for bit
+        alive = posterior.alive()[0].ravel()
+        assert np.array_equal(posterior.sim.measured[alive], slow.measured[alive])
+        assert np.array_equal(posterior.sim.a_true[alive], slow.a_true[alive])
+        np.testing.assert_allclose(posterior.log_post.ravel()[alive], log_post[alive], rtol=1e-12, atol=1e-9)
+        dead_gaps.append(log_post.max() - log_post[~alive].max() if not alive.all() else np.inf)
         log_joint = log_post.reshape(posterior.nodes, posterior.k_nodes)
         expected, peaked = _bayes_estimate(log_joint, slow.a_true[::posterior.k_nodes])
         concentrated.append(peaked)
@@ -82,5 +85,9 @@ def test_posterior_matches_a_slow_recomputation_per_node(task):
         # the estimate reaches the simulator as the action's float32 on [-1, 1]: its rounding, no more
         float32_step = posterior.config.theta_width * 2.0 ** -23
         assert info["a_estimate"] == pytest.approx(expected, rel=0.0, abs=float32_step)
+    # the estimate above is the full posterior's, dead nodes included: pruning changed it by nothing, and the dead
+    # nodes' weight in the full posterior is 0.0 (their T0 nodes' marginals lie past exp's underflow)
+    assert min(dead_gaps) > -EXP_ZERO_BELOW + np.log(posterior.k_nodes)
     if task in ("hyst_gym/HotCalibrate-v0", "hyst_gym/HotCalibrateUnknownK-v0"):  # mean, then vertex
         assert not concentrated[0] and any(concentrated)
+        assert np.isfinite(dead_gaps[-1])  # nodes died: the pruned path was exercised

@@ -17,6 +17,8 @@ from hyst_gym.estimation.information_bound import raised_cosine_quantile
 
 NODE_ARRAYS = ("field", "magnetization", "state", "temperature", "ambient0", "drift_rate", "steps", "a_true",
                "measured", "measured_temperature")
+#: the node-plant arrays that stay current at the width nodes when they are dead (posterior_step)
+WIDTH_NODE_ARRAYS = ("field", "temperature", "ambient0", "drift_rate", "steps", "a_true", "measured_temperature")
 
 
 def _bits(array) -> np.ndarray:
@@ -44,12 +46,15 @@ def _numpy_marginal(joint, a_nodes):
     return log_post, weights, mean, np.sqrt(variance + spacing ** 2 / 12.0)
 
 
+@pytest.mark.parametrize("prune", [False, True])
 @pytest.mark.parametrize("task, k_prior", [("hyst_gym/HotCalibrate-v0", None),
                                            ("hyst_gym/HotCalibrateUnknownK-v0", K_PRIOR)])
-def test_the_compiled_marginal_is_the_numpy_form_bit_for_bit(task, k_prior):
-    posterior = GridPosterior(task_config_v2(task), [0], 40, k_prior)
+def test_the_compiled_marginal_is_the_numpy_form_bit_for_bit(task, k_prior, prune):
+    posterior = GridPosterior(task_config_v2(task), [0], 40, k_prior, prune=prune)
     posterior.restart(np.arange(40))
     _drive(posterior, 5, np.random.default_rng(8))
+    alive = posterior.alive()
+    assert alive.all() != prune  # pruned: some rows are dead (the made-up outputs fit few nodes)
     rng = np.random.default_rng(9)
     shape = posterior.log_post.shape
     cases = [posterior.log_post.copy(),  # a posterior as the env makes it
@@ -59,6 +64,7 @@ def test_the_compiled_marginal_is_the_numpy_form_bit_for_bit(task, k_prior):
     cases[3][:, 0, 0] = 0.0
     zero, positive = 0, 0
     for joint in cases:
+        joint[~alive] = posterior_module.DEAD_LOG_POST  # where the pruned posterior's dead nodes hold it
         posterior.log_post[...] = joint
         posterior._results_valid = False
         results = posterior._marginal()
@@ -128,6 +134,8 @@ def test_restart_puts_the_node_plants_where_a_simulator_reset_puts_them(task, k_
         assert np.array_equal(now[[0, 2, 4]], was[[0, 2, 4]]), name  # the others untouched
     assert np.array_equal(posterior.log_post[1], np.repeat(posterior.log_prior, posterior.k_nodes).reshape(
         posterior.nodes, posterior.k_nodes))
+    alive = posterior.alive()
+    assert alive[[1, 3]].all() and not alive[[0, 2, 4]].all()  # the restart revived every node of its rows only
 
 
 @pytest.mark.parametrize("task, k_prior", [("hyst_gym/HotCalibrate-v0", None),
@@ -144,29 +152,34 @@ def test_the_step_in_two_threads_is_the_step_in_one_call(task, k_prior, monkeypa
         posterior.restart(np.arange(7))
         _drive(posterior, 45, np.random.default_rng(4), restart_at=[(20, np.array([2, 5]))])
         assert posterior_step.overloads  # compiled: the blocks did run in threads
+        assert not posterior.alive().all()  # nodes died: the pruning ran in both
         results.append([posterior.log_post, posterior.estimate(), posterior.spread()]
                        + [getattr(posterior.sim, name) for name in NODE_ARRAYS])
+        results[-1] = [np.asarray(values, dtype=np.float64) for values in results[-1] + list(posterior._alive)]
     for a, b in zip(*results):
         assert np.array_equal(_bits(a), _bits(b))
     assert np.isfinite(results[0][1]).all() and np.ptp(results[0][0]) > 1.0  # the posterior did move
 
 
+@pytest.mark.parametrize("prune", [False, True])
 @pytest.mark.parametrize("task, k_prior", [("hyst_gym/HotCalibrate-v0", None),
                                            ("hyst_gym/DisplacementOnly-v0", None),
                                            ("hyst_gym/HotCalibrateUnknownK-v0", K_PRIOR)])
-def test_the_node_plants_step_as_a_plain_simulator_per_node_bit_for_bit(task, k_prior, monkeypatch):
+def test_the_node_plants_step_as_a_plain_simulator_per_node_bit_for_bit(task, k_prior, prune, monkeypatch):
     # posterior_step moves a sub-env's node plants as one bank under their shared field: every node-plant array
     # must stay what the simulator's own step (plant_step, one plant at a time) makes of each node, under moving,
-    # held and saturated fields, across a restart, in two threads
+    # held and saturated fields, across a restart, in two threads; pruned, at every alive node, and the field and
+    # thermal state at the width nodes (k node 0 of T0 nodes 0 and 1: the spread's cell width reads a there)
     monkeypatch.setattr(posterior_module, "SPLIT_MIN_NODES", 1)
     monkeypatch.setattr(posterior_module, "step_threads", lambda: 2)
     n = 3
-    posterior = GridPosterior(task_config_v2(task), [0], n, k_prior)
+    posterior = GridPosterior(task_config_v2(task), [0], n, k_prior, prune=prune)
     assert len(posterior._blocks) == 2
     posterior.restart(np.arange(n))
     slow = [_slow_nodes(posterior) for _ in range(n)]
     per = posterior.nodes * posterior.k_nodes
     rng = np.random.default_rng(12)
+    pruned = False
     for t in range(100):
         # random, then commands held: the field reaches 30 kA/m and stays there, or its limits (commands past them)
         field = rng.uniform(-1.0, 1.0, n) if t < 25 else np.array([0.3, 2.0, -3.0])
@@ -176,11 +189,18 @@ def test_the_node_plants_step_as_a_plain_simulator_per_node_bit_for_bit(task, k_
         if t == 30:
             posterior.restart(np.array([1]))
             slow[1] = _slow_nodes(posterior)
+        alive = posterior.alive().reshape(n, per)
+        pruned |= not alive.all()
+        width = np.zeros(per, dtype=bool)
+        width[[0, posterior.k_nodes]] = True
         for name in NODE_ARRAYS:
             now = getattr(posterior.sim, name)
             now = now.reshape((n, per) + now.shape[1:])
             for row in range(n):
-                assert np.array_equal(_bits(now[row]), _bits(getattr(slow[row], name))), (t, name, row)
+                compared = alive[row] | width if name in WIDTH_NODE_ARRAYS else alive[row]
+                assert np.array_equal(_bits(now[row][compared]), _bits(getattr(slow[row], name)[compared])), \
+                    (t, name, row)
+    assert pruned == prune
     field_limit = posterior.config.field_limit
     assert np.array_equal(posterior.sim.field.reshape(n, per)[:, 0], [0.3 * field_limit, field_limit, -field_limit])
     assert posterior.sim.steps.max() == 100 and np.ptp(posterior.sim.temperature) > 1.0
