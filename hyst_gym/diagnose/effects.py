@@ -52,6 +52,8 @@ INPUT_MAP_NAMES = ("input_quadratic", "input_cubic", "input_saturation", "input_
 #: The input dynamics' lag and delay (s), in the order :func:`.model.input_dynamics` takes them. Its pair of poles
 #: (tau2_in) is not fitted: with it the input_lag fit ran for minutes on some records of the other-forms study.
 INPUT_DYNAMICS_NAMES = ("tau_in", "delay_in")
+#: The Delta-E family's coefficients (:func:`.model.relative_stiffness_change`).
+DELTA_E_NAMES = ("delta_e", "delta_e_linear", "delta_e_cubic", "delta_e_quartic")
 #: The sensor dynamics' time constants per channel (s): 1/(1 + tau*s + tau2^2*s^2) (:func:`.model.sensor_dynamics`).
 SENSOR_DYNAMICS_NAMES = {"magnetization": ("tau_m", "tau2_m"), "displacement": ("tau_x", "tau2_x")}
 #: Mains pickup needs this many cycles in the record (a sinusoid of known frequency is fixed by a few)
@@ -235,6 +237,12 @@ def _delta_e_parameters(recording, structure, base_values):
     return {"delta_e": Parameter("delta_e", 0.0, -0.5, 3.0, "1 (relative stiffness change, M = 0 to Ms)", scale=0.1),
             "delta_e_linear": Parameter("delta_e_linear", 0.0, -3.0, 3.0,
                                         "1 (relative stiffness change per unit M/Ms)", scale=0.1),
+            # a cubic term: a law about a centre Mb away from M = 0 that is not a parabola there (|M - Mb|^p with
+            # p 1.3-3 expanded about M = 0 has every power); without it the other-forms study's power_shifted
+            # records (large stiffness changes) were left at 2.7-4.8 noise units, where the magnetostriction law
+            # or the sensor map, standing in, reached 1.2 and were named
+            "delta_e_cubic": Parameter("delta_e_cubic", 0.0, -3.0, 3.0,
+                                       "1 (relative stiffness change, (M/Ms)^3 from 0 to 1)", scale=0.1),
             # a quartic term: a Delta-E dip narrower than a parabola, flattening toward saturation, and as
             # flexible a static law of M as the magnetostriction law's even terms, which on a slow record bend
             # the displacement alike (without it a better fit there named the family, not the slot)
@@ -695,8 +703,12 @@ _REGISTERED = (
         parameter_names=("tau_m", "tau_x", "tau2_m", "tau2_x"), parameters=_sensor_lag_parameters,
         identified_by=FirstFree(("tau_x", "tau_m")), applies=_always, rate_dependent=True, rescue=(),
         strategy="sensor_dynamics_scan", details=_sensor_dynamics_details,
-        # no resonance (tau2 = 0) is the first-order lag, a member of the family, not a wall
-        absent_at_zero=("tau2_m", "tau2_x"),
+        # no resonance (tau2 = 0) is the first-order lag, a member of the family, not a wall; and tau = 0 is a
+        # channel whose sensor does not filter (with both channels recorded, one probe may ring while the other
+        # reads true) or a resonance with little damping (tau = 2*zeta*tau2): members too. Read as walls, they set
+        # aside sensor-dynamics fits that brought sensor_resonance records (both channels, seeds 0 and 3) within
+        # 1.0 noise units, for tau_x = 3.4e-6 s and tau_m = 5.6e-7 s "at the bound" 0
+        absent_at_zero=("tau_m", "tau_x", "tau2_m", "tau2_x"),
         confusable={}),
     Effect(
         name="input_lag", slot="input dynamics (recorded to true field): a lag and a delay",
@@ -800,14 +812,15 @@ _REGISTERED = (
         name="delta_e", slot="stiffness (it follows the magnetization)",
         words="the Delta-E effect: the transducer's stiffness changes with its magnetization (a quartic in "
               "M/Ms, plotted in stiffness.png)",
-        parameter_names=("delta_e", "delta_e_linear", "delta_e_quartic"), parameters=_delta_e_parameters,
+        parameter_names=DELTA_E_NAMES, parameters=_delta_e_parameters,
         identified_by="delta_e", applies=_lumped_mechanics_applies, rate_dependent=False,
         # the rescue's design spans the quadratic law (the quartic keeps its local value): the search it needs is
         # for the hysteresis a strong Delta-E dragged off, not for the law's shape
         rescue=("delta_e", "delta_e_linear"),
         # the quadratic law first: fitted from 0 at once, the quartic led the local fit into another basin (a
-        # concealed M^2-law record: 44 noise units held out where the quadratic law's fit reached 7)
-        strategy="staged", held_first=("delta_e_quartic",),
+        # concealed M^2-law record: 44 noise units held out where the quadratic law's fit reached 7); the cubic
+        # and quartic terms are then released together
+        strategy="staged", held_first=("delta_e_cubic", "delta_e_quartic"),
         mechanical=True, confusable={}),
 )
 

@@ -39,14 +39,16 @@ the base model when those parameters vanish:
 ``rod_dynamics``                ``f2`` (Hz), ``damping2`` (damping ratio) and ``g2``: a second
                                 longitudinal rod mode (10) in parallel with the lumped one; g2
                                 is its static gain relative to the first
-``delta_e``                     ``delta_e``, ``delta_e_linear``, ``delta_e_quartic``: the Delta-E
-                                effect, a stiffness that follows the magnetization, a quartic in
-                                m = M/Ms: ``khat*(1 + delta_e*(m^2 - m0^2) + delta_e_linear*(m - m0)
+``delta_e``                     ``delta_e``, ``delta_e_linear``, ``delta_e_cubic``,
+                                ``delta_e_quartic``: the Delta-E effect, a stiffness that follows
+                                the magnetization, a quartic in m = M/Ms: ``khat*(1 + delta_e*(m^2 -
+                                m0^2) + delta_e_linear*(m - m0) + delta_e_cubic*(m^3 - m0^3)
                                 + delta_e_quartic*(m^4 - m0^4))`` (Terfenol-D stiffens toward
                                 saturation; Clark's Delta-E). The family holds Clark's M^2 law
-                                (delta_e_linear = delta_e_quartic = 0), a law in (M - Mb)^2 about
-                                another centre Mb (delta_e_linear = -2*delta_e*Mb/Ms) and a dip
-                                narrower than a parabola (delta_e_quartic)
+                                (the other terms 0), a law in (M - Mb)^2 about another centre Mb
+                                (delta_e_linear = -2*delta_e*Mb/Ms), laws about Mb that are not
+                                parabolas there (delta_e_cubic) and a dip narrower than a parabola
+                                (delta_e_quartic)
 ``anhysteretic_shape``          the other anhysteretic curve (Ising <-> Langevin), or a mixture:
                                 ``mix_weight`` w and ``mix_a_ratio`` r, the magnetization
                                 ``(1 - w)*M[other curve, a] + w*M[base curve, r*a]`` (two phases,
@@ -103,9 +105,9 @@ import numpy as np
 from ..physics.fem import FEMRod
 from ..physics.constants import PAPER_DAMPING, PAPER_STIFFNESS
 from ..physics.transducers import RodParams
-from .effects import (DRIFT_NAMES, EFFECTS, EVEN_LAW_NAMES, EVEN_LAW_POWERS, GAIN_DRIFT_NAMES, INPUT_DYNAMICS_NAMES,
-                      INPUT_MAP_NAMES, MAINS_MIN_CYCLES, MAINS_NAMES, PAPER_MS, SENSOR_MAP_NAMES, applicable_effects,
-                      effect, extension_parameters, mapped_field)
+from .effects import (DELTA_E_NAMES, DRIFT_NAMES, EFFECTS, EVEN_LAW_NAMES, EVEN_LAW_POWERS, GAIN_DRIFT_NAMES,
+                      INPUT_DYNAMICS_NAMES, INPUT_MAP_NAMES, MAINS_MIN_CYCLES, MAINS_NAMES, PAPER_MS, SENSOR_MAP_NAMES,
+                      applicable_effects, effect, extension_parameters, mapped_field)
 from .kernels import (AMBIENT_TEMPERATURE, MAGNETIC_COLUMNS, PINNING_DRIFT_COLUMNS, first_order_system, lti_response,
                       heating_reference, knee_exponents, lane_passes, member_passes, second_order_system,
                       simulate_lanes,
@@ -381,7 +383,7 @@ class Model:
                 forcing = forcing + even_law_forcing(magnetization, values["Ms"], M0, even) / gain
         if transducer == "fem":
             return _fem_tip_displacement(self._time, forcing, gain, values, self._classes)
-        stiffness_terms = [values.get(n, 0.0) for n in ("delta_e", "delta_e_linear", "delta_e_quartic")]
+        stiffness_terms = [values.get(n, 0.0) for n in DELTA_E_NAMES]
         if any(stiffness_terms) and transducer in ("lumped", "lumped_nonlinear"):
             relative_stiffness = relative_stiffness_change(magnetization, values)
             return varying_stiffness_response(self._time, gain * forcing, relative_stiffness,
@@ -415,11 +417,13 @@ def even_law_forcing(magnetization, Ms, M0, coefficients):
 
 def relative_stiffness_change(magnetization, values):
     """The Delta-E family's relative stiffness change khat(M)/khat - 1 (1) at ``magnetization`` (A/m):
-    ``delta_e*(m^2 - m0^2) + delta_e_linear*(m - m0) + delta_e_quartic*(m^4 - m0^4)``, m = M/Ms, zero at the
-    bias M0."""
+    ``delta_e*(m^2 - m0^2) + delta_e_linear*(m - m0) + delta_e_cubic*(m^3 - m0^3) + delta_e_quartic*(m^4 - m0^4)``,
+    m = M/Ms, zero at the bias M0."""
     m, m0 = magnetization / values["Ms"], values["M0"] / values["Ms"]
     change = values.get("delta_e", 0.0) * (m ** 2 - m0 ** 2) + values.get("delta_e_linear", 0.0) * (m - m0)
-    quartic = values.get("delta_e_quartic", 0.0)
+    cubic, quartic = values.get("delta_e_cubic", 0.0), values.get("delta_e_quartic", 0.0)
+    if cubic:
+        change = change + cubic * (m ** 3 - m0 ** 3)
     return change + quartic * (m ** 4 - m0 ** 4) if quartic else change
 
 

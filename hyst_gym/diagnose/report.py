@@ -22,7 +22,7 @@ __all__ = ["EFFECT_WORDS", "UNITS", "explain", "physical_params", "record_temper
 UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "heating_exponent": "", "tau_th": "s", "beta_Ms": "1/K",
          "tau_m": "s", "tau_x": "s", "tau2_m": "s", "tau2_x": "s", "tau2_in": "s", "zeta_q": "m/s^2 per (A/m)^2",
          "zeta_4": "m/s^2 per A/m", "f2": "Hz", "damping2": "", "g2": "",
-         "delta_e": "", "delta_e_linear": "", "delta_e_quartic": "",
+         "delta_e": "", "delta_e_linear": "", "delta_e_cubic": "", "delta_e_quartic": "",
          "chi_r": "", "knee_log_p": "", "a": "A/m", "k": "A/m", "Ms": "A/m", "c": "", "alpha": "",
          "Y": "Pa", "ML": "kg", "cD": "Pa s", "cL": "N s/m", "khat": "1/s^2", "chat": "1/s"}
 

@@ -1,8 +1,8 @@
 """The mechanical slots' flexible families: the magnetostriction law's even term (``zeta_4``), the
-Delta-E stiffness's quartic term (``delta_e_quartic``) and the second mode's range below the lumped one (a rod
-on a compliant mount). Each holds today's formula at its zero value exactly, and each is what it says: the
-even law is recovered from a displacement written in its form, the stiffness term is zero at the bias, and a
-second mode below the first is the modal sum of two second-order systems."""
+Delta-E stiffness's cubic and quartic terms (``delta_e_cubic``, ``delta_e_quartic``) and the second mode's range
+below the lumped one (a rod on a compliant mount). Each holds today's formula at its zero value exactly, and each is
+what it says: the even law is recovered from a displacement written in its form, the stiffness terms are zero at the
+bias, and a second mode below the first is the modal sum of two second-order systems."""
 
 from dataclasses import replace
 
@@ -79,6 +79,12 @@ def test_quartic_stiffness_at_zero_is_the_quadratic_law_and_vanishes_at_the_bias
     with_quartic = relative_stiffness_change(m, dict(values, delta_e_quartic=-0.9))
     np.testing.assert_allclose(with_quartic - quadratic, -0.9 * ((m / Ms) ** 4 - (M0 / Ms) ** 4), rtol=0, atol=1e-15)
     assert relative_stiffness_change(np.array([M0]), dict(values, delta_e_quartic=-0.9))[0] == 0.0
+    # the cubic term: a law about a centre away from M = 0 that is not symmetric about it (|M - Mb|^p expanded)
+    np.testing.assert_array_equal(relative_stiffness_change(m, dict(values, delta_e_cubic=0.0)),
+                                  relative_stiffness_change(m, values))
+    with_cubic = relative_stiffness_change(m, dict(values, delta_e_cubic=0.7, delta_e_quartic=-0.9))
+    np.testing.assert_allclose(with_cubic - with_quartic, 0.7 * ((m / Ms) ** 3 - (M0 / Ms) ** 3), rtol=0, atol=1e-15)
+    assert relative_stiffness_change(np.array([M0]), dict(values, delta_e_cubic=0.7))[0] == 0.0
 
 
 def test_second_mode_below_the_lumped_one_is_the_modal_sum(recording):
@@ -122,15 +128,16 @@ def test_the_report_plots_the_fitted_law_against_the_m2_law(recording):
 
 
 def test_the_stiffness_family_is_fitted_no_worse_than_its_quadratic_member():
-    """The staged fit of ``delta_e``: the quadratic law (the quartic held at 0) first, then the quartic released
-    from it and kept only if the fitting block asks for it; the result fits the block at least as well as the
-    quadratic member's own fit (the candidate's model, the quartic fixed, from the same start), on a Clark
-    M^2-law record."""
+    """The staged fit of ``delta_e``: the quadratic law (the cubic and quartic held at 0) first, then both
+    released from it and kept only if the fitting block asks for it; the result fits the block at least as well as
+    the quadratic member's own fit (the candidate's model, the cubic and quartic fixed, from the same start), on a
+    Clark M^2-law record."""
     from hyst_gym.diagnose.effects import effect
     from hyst_gym.diagnose.fit import Split
     from hyst_gym.diagnose.hypothesize import calibrate, fit_candidate
 
-    assert effect("delta_e").strategy == "staged" and effect("delta_e").held_first == ("delta_e_quartic",)
+    assert effect("delta_e").strategy == "staged"
+    assert effect("delta_e").held_first == ("delta_e_cubic", "delta_e_quartic")
     recording = make_recording_with_truth("delta_e", 5, output="displacement", n_samples=1200)[0]
     split = Split.of(recording, 0.3)
     base = calibrate(split, Structure(), n_points=32, keep=1)
@@ -138,14 +145,15 @@ def test_the_stiffness_family_is_fitted_no_worse_than_its_quadratic_member():
     structure = Structure(base.model.structure.transducer, base.model.structure.anhysteretic, "delta_e",
                           base.model.structure.fit_mechanics)
     parameters = {**base.model.parameters, **extension_parameters(recording, structure, base.values)}
-    parameters["delta_e_quartic"] = replace(parameters["delta_e_quartic"], free=False)
+    for held in ("delta_e_cubic", "delta_e_quartic"):
+        parameters[held] = replace(parameters[held], free=False)
     member = Model(recording, structure, parameters, split.max_field_step)
     alone = min((split.fit(member, start, max_nfev=40) for start in effect_starts(member, "delta_e", base.values)),
                 key=lambda result: result.sse)
     # the candidate is refitted from the member's fit once more: equal to the solver's tolerance, never worse
     assert fitted.sse <= alone.sse * (1 + 1e-3)
     if not fitted.model.parameters["delta_e_quartic"].free:
-        assert fitted.values["delta_e_quartic"] == 0.0
+        assert fitted.values["delta_e_quartic"] == fitted.values["delta_e_cubic"] == 0.0
 
 
 def _with_second_mode(recording, ratio):

@@ -87,3 +87,25 @@ def test_a_ringing_probe_is_named_sensor_dynamics_with_its_resonance(seed, share
     assert abs(fitted_frequency / frequency - 1.0) < 0.03
     assert abs(values["tau_m"] / (2 * values["tau2_m"]) / damping - 1.0) < 0.2
     assert "resonates at" in report.explanation
+
+
+def test_a_channel_whose_sensor_does_not_filter_is_no_wall():
+    """tau = 0 on a channel is a member of the sensor-dynamics family (that channel's sensor reads true while the
+    other rings, or a resonance with little damping), not a fit that ran into a wall: a tau a hair above 0 passes
+    the bound check, a tau at the family's upper bound (5 % of the record) does not."""
+    from types import SimpleNamespace
+
+    from hyst_gym.diagnose.decide import Plausibility, _check_bounds
+    from hyst_gym.diagnose.effects import effect
+    from hyst_gym.diagnose.parameter import Parameter
+
+    registered = effect("sensor_lag")
+    parameters = {name: Parameter(name, 0.0, 0.0, 5e-3, "s") for name in registered.parameter_names}
+    model = SimpleNamespace(parameters=parameters)
+    near_zero = {"tau_m": 2e-4, "tau_x": 3.4e-6, "tau2_m": 1e-4, "tau2_x": 5e-7}
+    out = Plausibility()
+    _check_bounds(out, registered, SimpleNamespace(model=model, values=near_zero))
+    assert out.plausible, out.reasons
+    walled = Plausibility()
+    _check_bounds(walled, registered, SimpleNamespace(model=model, values=dict(near_zero, tau_m=5e-3)))
+    assert not walled.plausible and walled.at_bound == ["tau_m"]
