@@ -112,7 +112,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .effects import CONFUSABLE, EFFECT_SLOTS, RELATIVE_CHANGE_LIMIT, effect as registered, static_map_slopes
+from .effects import (CONFUSABLE, EFFECT_SLOTS, RELATIVE_CHANGE_LIMIT, effect as registered, sample_interval,
+                      static_map_slopes)
 from .fit import local_fit
 from .identifiability import channel_set, separating_measurement
 from .model import Model
@@ -159,18 +160,16 @@ class Plausibility:
 
     def reject(self, reason: str, at_bound: str | None = None, disagreeing: str | None = None):
         """Set the candidate aside for ``reason``; ``at_bound``: the parameter, when the reason is its bound;
-        ``disagreeing``: the parameter, when the reason is its disagreement across time blocks."""
+        ``disagreeing``: the parameter, when the reason is its disagreement across time blocks (one tag at most:
+        :attr:`only_form_doubts` counts one tag per reason)."""
+        if at_bound is not None and disagreeing is not None:
+            raise ValueError("Plausibility.reject: one reason is either a bound or a disagreement, not both")
         self.plausible = False
         self.reasons.append(reason)
         if at_bound is not None:
             self.at_bound.append(at_bound)
         if disagreeing is not None:
             self.disagreeing.append(disagreeing)
-
-    @property
-    def only_at_bound(self) -> bool:
-        """Set aside for parameters at their bounds and for nothing else (every other check passed)."""
-        return not self.plausible and len(self.at_bound) == len(self.reasons) > 0
 
     @property
     def only_form_doubts(self) -> bool:
@@ -214,7 +213,10 @@ def _check_bounds(out: Plausibility, effect, fit):
             continue
         value = fit.values[name]
         span = p.upper - p.lower
-        lower = float("inf") if name in effect.absent_at_zero and p.lower == 0.0 else abs(value - p.lower)
+        absent = name in effect.absent_at_zero or (
+            name in getattr(effect, "unfiltered_at_zero", {})  # a stand-in effect (tests) may not have it
+            and fit.values.get(effect.unfiltered_at_zero[name], 0.0) < sample_interval(model.recording))
+        lower = float("inf") if absent and p.lower == 0.0 else abs(value - p.lower)
         if min(lower, abs(p.upper - value)) < 1e-3 * span and value != 0.0:
             out.reject(f"{name} = {value:.4g} sits at the bound of its physical range "
                        f"[{p.lower:.4g}, {p.upper:.4g}]", at_bound=name)

@@ -44,7 +44,10 @@ MAINS_NAMES = {ch: tuple(f"{term}_{ch[0]}" for term in ("mains_cos", "mains_sin"
 #: M^2; 0 is the M^2 law. Why not a sixth power too: on a slow record a stiffness that follows M (delta_e, a
 #: quartic in M/Ms) bends the displacement as a law of M does, and a law one degree more flexible than the
 #: stiffness fitted a Delta-E dip better than the stiffness's own family (the other-forms study's sech dip named
-#: a magnetostriction law, a right verdict turned wrong); at equal degree the two tie there, as they should.
+#: a magnetostriction law, a right verdict turned wrong); at equal degree the two tie there, as they should. The
+#: stiffness has a cubic term besides (delta_e_cubic), which the even law cannot have: it fits laws about a centre
+#: away from M = 0 that are not parabolas there, and on the other-forms study it changed no verdict on a
+#: magnetostriction-law or sensor-map record (it turned two such stand-in names on Delta-E records into ties).
 EVEN_LAW_POWERS = MappingProxyType({"zeta_4": 4})
 EVEN_LAW_NAMES = tuple(EVEN_LAW_POWERS)
 #: The input map's coefficients in the order :func:`.model.mapped_field` takes them.
@@ -64,15 +67,27 @@ MAINS_MIN_CYCLES = 3
 # ---------------------------------------------------------------------------- which parameter identifies it
 
 
-@dataclass(frozen=True)
-class FirstFree:
-    """The effect is identified by the first free parameter of ``names`` (else the last of them)."""
+def sample_interval(recording) -> float:
+    """s: the record's median sample interval, below which a time constant does nothing the record can see."""
+    return float(np.median(np.diff(recording.time)))
 
-    names: tuple
+
+@dataclass(frozen=True)
+class FirstFiltering:
+    """A per-channel filter is identified by the time constant ``tau`` of the first channel of ``channels`` that
+    is free and filters: where the channel's ``tau`` and ``tau2`` (:data:`SENSOR_DYNAMICS_NAMES`) are both below
+    one sample interval it reads true, and its tau, near 0 wherever the record is cut, would pass the block check
+    for nothing. Else the first free one (else the last's)."""
+
+    channels: tuple
 
     def choose(self, fit, effect) -> str:
-        parameters = fit.model.parameters
-        return next((n for n in self.names if n in parameters and parameters[n].free), self.names[-1])
+        parameters, values = fit.model.parameters, fit.values
+        free = [SENSOR_DYNAMICS_NAMES[ch] for ch in self.channels if SENSOR_DYNAMICS_NAMES[ch][0] in parameters
+                and parameters[SENSOR_DYNAMICS_NAMES[ch][0]].free]
+        dt = sample_interval(fit.model.recording)
+        filtering = [tau for tau, tau2 in free if max(values[tau], values.get(tau2, 0.0)) >= dt]
+        return (filtering or [tau for tau, _ in free] or [SENSOR_DYNAMICS_NAMES[self.channels[-1]][0]])[0]
 
 
 @dataclass(frozen=True)
@@ -593,7 +608,7 @@ class Effect:
     words : what it is, in a sentence of the report
     parameter_names : the parameters it adds (empty: it swaps a law)
     parameters : ``(recording, structure, base values) -> {name: Parameter}``: ranges, initial values, units
-    identified_by : which parameter the block-consistency check refits (:class:`FirstFree`, a name,
+    identified_by : which parameter the block-consistency check refits (:class:`FirstFiltering`, a name,
         :class:`BestDetermined`, :class:`NoParameter` with the reason)
     applies : ``(recording, structure) -> bool``: whether the base structure and the record can show it
     rate_dependent : its signature needs a real time axis (a rate, a delay or a resonance)
@@ -610,6 +625,9 @@ class Effect:
     search_ranges : its parameters whose bounds are search ranges, not physical walls
     absent_at_zero : its parameters whose lower bound 0 means "this term is absent" (a member of the
         family), not a wall; their upper bound is still one
+    unfiltered_at_zero : ``{time constant: its partner}``: a time constant whose lower bound 0 is a member of the
+        family (the channel does not filter) where the partner is below one sample interval too, and a wall where
+        it is not (``tau`` at 0 beside a ``tau2`` the record sees: a resonance without damping)
     slopes : ``(values, channels, u) -> [(what, slope)]`` of a static map, which must be monotone
     loop_offset : the parameter that must show as a horizontal offset of the recorded loop
     details : ``(values, recording) -> str`` added to the report's sentence
@@ -637,6 +655,7 @@ class Effect:
     channel_terms: Mapping = dataclass_field(default_factory=dict)
     search_ranges: tuple = ()
     absent_at_zero: tuple = ()
+    unfiltered_at_zero: Mapping = dataclass_field(default_factory=dict)
     slopes: Callable | None = None
     loop_offset: str | None = None
     details: Callable | None = None
@@ -701,14 +720,17 @@ _REGISTERED = (
         words="sensor dynamics: the output sensor(s) filter the true output, a first-order lag or a second-order "
               "low-pass with a resonance (a probe or an amplifier that rings)",
         parameter_names=("tau_m", "tau_x", "tau2_m", "tau2_x"), parameters=_sensor_lag_parameters,
-        identified_by=FirstFree(("tau_x", "tau_m")), applies=_always, rate_dependent=True, rescue=(),
+        identified_by=FirstFiltering(("displacement", "magnetization")), applies=_always, rate_dependent=True,
+        rescue=(),
         strategy="sensor_dynamics_scan", details=_sensor_dynamics_details,
-        # no resonance (tau2 = 0) is the first-order lag, a member of the family, not a wall; and tau = 0 is a
-        # channel whose sensor does not filter (with both channels recorded, one probe may ring while the other
-        # reads true) or a resonance with little damping (tau = 2*zeta*tau2): members too. Read as walls, they set
-        # aside sensor-dynamics fits that brought sensor_resonance records (both channels, seeds 0 and 3) within
-        # 1.0 noise units, for tau_x = 3.4e-6 s and tau_m = 5.6e-7 s "at the bound" 0
-        absent_at_zero=("tau_m", "tau_x", "tau2_m", "tau2_x"),
+        # no resonance (tau2 = 0) is the first-order lag, a member of the family, not a wall; and tau = 0 with tau2
+        # below a sample interval is a channel whose sensor does not filter (with both channels recorded, one probe
+        # may ring while the other reads true), a member too. Read as a wall, it set aside sensor-dynamics fits
+        # that brought sensor_resonance records (both channels, other-forms seeds 0, 1 and 3) within 1.0 noise
+        # units, for tau_x = 3.4e-6 s or tau_m = 5.6e-7 s "at the bound" 0 beside a tau2 under the sample
+        # interval. tau = 0 beside a tau2 the record sees (a resonance without damping) stays a wall
+        absent_at_zero=tuple(tau2 for _, tau2 in SENSOR_DYNAMICS_NAMES.values()),
+        unfiltered_at_zero=dict(SENSOR_DYNAMICS_NAMES.values()),
         confusable={}),
     Effect(
         name="input_lag", slot="input dynamics (recorded to true field): a lag and a delay",
@@ -814,8 +836,8 @@ _REGISTERED = (
               "M/Ms, plotted in stiffness.png)",
         parameter_names=DELTA_E_NAMES, parameters=_delta_e_parameters,
         identified_by="delta_e", applies=_lumped_mechanics_applies, rate_dependent=False,
-        # the rescue's design spans the quadratic law (the quartic keeps its local value): the search it needs is
-        # for the hysteresis a strong Delta-E dragged off, not for the law's shape
+        # the rescue's design spans the quadratic law (the cubic and quartic keep their local values): the search it
+        # needs is for the hysteresis a strong Delta-E dragged off, not for the law's shape
         rescue=("delta_e", "delta_e_linear"),
         # the quadratic law first: fitted from 0 at once, the quartic led the local fit into another basin (a
         # concealed M^2-law record: 44 noise units held out where the quadratic law's fit reached 7); the cubic

@@ -63,6 +63,9 @@ PINNING_DRIFT_COLUMNS = ("beta_k", "beta_c")
 CURVE_COLUMNS = ("knee_exponent",)
 KNEE_COLUMN = len(MAGNETIC_COLUMNS) + len(PINNING_DRIFT_COLUMNS)
 AMBIENT_TEMPERATURE = ROOM_TEMPERATURE  # K, reference temperature of the fitted a (eq. 4)
+#: The Delta-E family's relative stiffness change is clipped at this (a stiffness that stays positive) before the
+#: lumped step integrates it (:func:`varying_stiffness_response`); the report plots the same clipped law.
+MIN_RELATIVE_STIFFNESS = -0.95
 
 
 def knee_exponents(params) -> np.ndarray:
@@ -604,7 +607,7 @@ def varying_stiffness_response(time, forcing, relative_stiffness, stiffness, dam
     A, B, _ = second_order_system(stiffness, damping, 1.0)
     phis, gamma0s, gamma1s = _first_order_hold(A, B, steps)
     forcing = np.ascontiguousarray(forcing, dtype=np.float64)
-    relative = np.ascontiguousarray(np.maximum(relative_stiffness, -0.95), dtype=np.float64)
+    relative = np.ascontiguousarray(np.maximum(relative_stiffness, MIN_RELATIVE_STIFFNESS), dtype=np.float64)
     x0 = np.array([forcing[0] / (stiffness * (1.0 + relative[0])), 0.0])
     return _step_varying_stiffness(forcing, relative, float(stiffness), index, phis, gamma0s, gamma1s, x0)
 

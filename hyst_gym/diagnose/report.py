@@ -12,6 +12,7 @@ from .effects import (EFFECT_PARAMETERS, EFFECT_WORDS, EVEN_LAW_NAMES, INPUT_MAP
                       effect as registered, record_temperature_rise, temperature_rise_trace, thermal_change_words)
 from ..physics.anhysteretic import anhysteretic_magnetization
 from .fit import FitResult
+from .kernels import MIN_RELATIVE_STIFFNESS
 from .model import (FEM_ROD_NAMES, channel_range, even_law_forcing, mapped_field, relative_stiffness_change,
                     slope_factor)
 
@@ -55,7 +56,8 @@ def slot_shapes(fit) -> list:
     effect = fit.model.structure.extension
     if effect == "delta_e":
         m = np.linspace(-values["Ms"], values["Ms"], 201)
-        stiffness = values["khat"] * (1.0 + relative_stiffness_change(m, values))
+        # clipped as the simulation clips it (kernels.varying_stiffness_response): the plot shows the law that ran
+        stiffness = values["khat"] * (1.0 + np.maximum(relative_stiffness_change(m, values), MIN_RELATIVE_STIFFNESS))
         return [("stiffness", "Stiffness against magnetization (Delta-E family)", "M (A/m)", "khat(M) (1/s^2)",
                  [("fitted", m, stiffness), ("without the effect", m, np.full_like(m, values["khat"]))])]
     if effect == "input_map":

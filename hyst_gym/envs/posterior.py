@@ -131,7 +131,11 @@ class GridPosterior:
     :data:`POSTERIOR_NODES`, the first of :data:`K_TASK_NODES` with a k prior); ``k_nodes``: 1 (k known at the
     config's) or >= 3 (over the k prior; default the second of :data:`K_TASK_NODES` with a k prior); ``prune``: stop
     simulating the dead nodes (module doc, "Pruning"; False: every node plant is simulated at every step, the
-    reference the pruned posterior is tested against)."""
+    reference the pruned posterior is tested against).
+
+    ``log_post`` (n, nodes, k_nodes): the log-posterior per node; a pruned node holds :data:`DEAD_LOG_POST` (a
+    finite stand-in far below any live node, whose weight is exactly 0.0 as the dead node's was), not its own
+    log-posterior, which stops being updated."""
 
     def __init__(self, config, channels, n: int, k_prior=None, nodes: int | None = None,
                  k_nodes: int | None = None, prune: bool = True):

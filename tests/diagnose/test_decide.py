@@ -435,10 +435,10 @@ def test_the_bound_check_records_which_parameter_sits_at_its_bound():
     fit = SimpleNamespace(model=SimpleNamespace(parameters=parameters), values={"beta_k": 0.05, "tau_th": 100.0})
     out = Plausibility()
     _check_bounds(out, effect, fit)
-    assert out.at_bound == ["beta_k"] and out.only_at_bound and not out.plausible
+    assert out.at_bound == ["beta_k"] and out.only_form_doubts and not out.plausible
     inside = Plausibility()
     _check_bounds(inside, effect, SimpleNamespace(model=fit.model, values={"beta_k": 0.02, "tau_th": 100.0}))
-    assert inside.plausible and not inside.only_at_bound
+    assert inside.plausible and not inside.only_form_doubts
 
 
 def test_the_block_check_records_which_main_parameter_disagrees(monkeypatch):
@@ -459,4 +459,4 @@ def test_the_block_check_records_which_main_parameter_disagrees(monkeypatch):
         out = decide_module.check_plausibility(candidate, {"magnetization": 1.0})
         assert out.plausible is plausible, out.reasons
         assert out.disagreeing == ([] if plausible else ["k_e"])
-        assert out.only_form_doubts is (not plausible) and not out.only_at_bound
+        assert out.only_form_doubts is (not plausible) and out.at_bound == []

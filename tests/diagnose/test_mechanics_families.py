@@ -68,7 +68,7 @@ def test_linear_start_recovers_a_displacement_written_in_the_even_law(recording)
     np.testing.assert_allclose(model.displacement(solved, m), written, rtol=0, atol=1e-8 * np.ptp(written))
 
 
-def test_quartic_stiffness_at_zero_is_the_quadratic_law_and_vanishes_at_the_bias():
+def test_cubic_and_quartic_stiffness_at_zero_are_the_quadratic_law_and_vanish_at_the_bias():
     Ms, M0 = 8e5, 2e5
     m = np.linspace(-Ms, Ms, 31)
     values = {"Ms": Ms, "M0": M0, "delta_e": 0.4, "delta_e_linear": -0.3}

@@ -90,9 +90,10 @@ def test_a_ringing_probe_is_named_sensor_dynamics_with_its_resonance(seed, share
 
 
 def test_a_channel_whose_sensor_does_not_filter_is_no_wall():
-    """tau = 0 on a channel is a member of the sensor-dynamics family (that channel's sensor reads true while the
-    other rings, or a resonance with little damping), not a fit that ran into a wall: a tau a hair above 0 passes
-    the bound check, a tau at the family's upper bound (5 % of the record) does not."""
+    """tau = 0 on a channel whose tau2 is below one sample interval too is a member of the sensor-dynamics family
+    (that channel's sensor reads true while the other rings), not a fit that ran into a wall; tau = 0 beside a tau2
+    the record sees (a resonance without damping) is a wall, and so is a tau at the family's upper bound. The block
+    check then refits the filtering channel's tau, not the near-zero one."""
     from types import SimpleNamespace
 
     from hyst_gym.diagnose.decide import Plausibility, _check_bounds
@@ -101,11 +102,19 @@ def test_a_channel_whose_sensor_does_not_filter_is_no_wall():
 
     registered = effect("sensor_lag")
     parameters = {name: Parameter(name, 0.0, 0.0, 5e-3, "s") for name in registered.parameter_names}
-    model = SimpleNamespace(parameters=parameters)
-    near_zero = {"tau_m": 2e-4, "tau_x": 3.4e-6, "tau2_m": 1e-4, "tau2_x": 5e-7}
-    out = Plausibility()
-    _check_bounds(out, registered, SimpleNamespace(model=model, values=near_zero))
-    assert out.plausible, out.reasons
-    walled = Plausibility()
-    _check_bounds(walled, registered, SimpleNamespace(model=model, values=dict(near_zero, tau_m=5e-3)))
+    model = SimpleNamespace(parameters=parameters, recording=SimpleNamespace(time=np.arange(2000) * 1e-5))
+    ringing_m = {"tau_m": 2e-4, "tau_x": 3.4e-6, "tau2_m": 1e-4, "tau2_x": 5e-7}
+
+    def check(values):
+        out = Plausibility()
+        _check_bounds(out, registered, SimpleNamespace(model=model, values=values))
+        return out
+
+    assert check(ringing_m).plausible, check(ringing_m).reasons
+    undamped = check(dict(ringing_m, tau2_x=1e-4))
+    assert not undamped.plausible and undamped.at_bound == ["tau_x"]
+    walled = check(dict(ringing_m, tau_m=5e-3))
     assert not walled.plausible and walled.at_bound == ["tau_m"]
+    fit = SimpleNamespace(model=model, values=ringing_m)
+    assert registered.main_parameter(fit) == "tau_m"
+    assert registered.main_parameter(SimpleNamespace(model=model, values=dict(ringing_m, tau_x=5e-5))) == "tau_x"

@@ -193,5 +193,5 @@ def test_thermal_limits_bound_the_relative_change_over_the_record():
         assert out.plausible is plausible, (change, beta_k, out.reasons)
         assert abs(beta_k) > 0.05  # past the old per-kelvin range
         if not plausible:
-            assert out.at_bound == ["beta_k"] and out.only_at_bound
+            assert out.at_bound == ["beta_k"] and out.only_form_doubts
     assert RELATIVE_CHANGE_LIMIT == 0.95
