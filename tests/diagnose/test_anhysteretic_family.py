@@ -202,3 +202,31 @@ def test_the_report_plots_the_knee_curve_against_the_ising_curve_of_the_same_ini
     np.testing.assert_allclose(ising, np.tanh(x), rtol=1e-12, atol=1e-15)
     # the same initial slope, a sharper knee: above the Ising curve, and at 1 % of saturation where tanh is at 76 %
     assert np.all(fitted[x > 0] >= ising[x > 0]) and fitted[np.argmin(np.abs(x - 1.0))] > 0.89
+
+
+def test_a_knee_at_the_wall_of_its_range_gives_way_to_the_family_without_it(monkeypatch):
+    """A plain Ising <-> Langevin swap (the own generator's record, magnetization, seed 100): the knee contends in
+    the probe but the family's best fit with it free puts p at 4, the wall of its range, which would set the whole
+    candidate aside. The candidate is then the family with the knee held at p = 1, which explains the record to
+    within the noise and is named; the refit is the held member's own best fit from the same starts."""
+    from hyst_gym.diagnose import hypothesize
+    from hyst_gym.diagnose.fit import Split
+    from hyst_gym.diagnose.hypothesize import _knee_at_wall, calibrate, fit_candidate
+
+    recording = make_recording_with_truth("anhysteretic_shape", 100, output="magnetization", n_samples=5000)[0]
+    split = Split.of(recording, 0.3)
+    base = calibrate(split, Structure("none"), keep=2)
+    walls = []
+    original = hypothesize._without_knee
+
+    def recorded(split, model, starts):  # the knee-free fit it replaces ended at the wall
+        walls.append(model.parameters["knee_log_p"].free)
+        return original(split, model, starts)
+
+    monkeypatch.setattr(hypothesize, "_without_knee", recorded)
+    fitted = fit_candidate(split, base, "anhysteretic_shape")
+    assert walls == [True]
+    assert not fitted.model.parameters["knee_log_p"].free and fitted.values["knee_log_p"] == 0.0
+    assert not _knee_at_wall(fitted)
+    report = diagnose(recording, progress=False)
+    assert report.verdict == "anhysteretic_shape" and report.chosen.heldout_rmse < 1.2
