@@ -1,6 +1,6 @@
 """The grid posterior's pruning (posterior.py, "Pruning") changes no estimate: side by side with the unpruned
 posterior, over whole episodes of the calibration tasks under the inputs of the benchmark (random actions), an
-open-loop sine and a feedback hold, with auto-resets (time limits and overheats), the estimate and the spread agree
+open-loop sine and a feedback hold, with auto-resets (time limits and terminations), the estimate and the spread agree
 bit for bit at every step of every sub-env."""
 
 import gymnasium
@@ -39,7 +39,7 @@ def _inputs(name, observation, heat_column, t, rng):
 
 @pytest.mark.parametrize("task", ["hyst_gym/HotCalibrate-v0", "hyst_gym/HotCalibrateUnknownK-v0"])
 def test_the_pruned_posterior_reports_the_unpruned_numbers_bit_for_bit(task):
-    alive_fractions, concentrated, resets = [], 0, 0
+    alive_fractions, concentrated, resets, terminations = [], 0, 0, 0
     for seed, name in enumerate(("random", "sine", "hold")):
         (full, observation), (pruned, _) = _pair(task, 100 * seed)
         heat_column = full.unwrapped.kept_names.index("heat_used")
@@ -47,9 +47,11 @@ def test_the_pruned_posterior_reports_the_unpruned_numbers_bit_for_bit(task):
         for t in range(STEPS):
             action = _inputs(name, observation, heat_column, t, rng).astype(np.float32)
             observation, _, terminated, truncated, _ = full.step(action)
-            other, _, terminated_too, _, _ = pruned.step(action)
+            other, _, terminated_too, truncated_too, _ = pruned.step(action)
             resets += int(terminated.sum() + truncated.sum())
+            terminations += int(terminated.sum())
             assert np.array_equal(observation, other) and np.array_equal(terminated, terminated_too), (name, t)
+            assert np.array_equal(truncated, truncated_too), (name, t)
             reference, posterior = full.unwrapped.posterior, pruned.unwrapped.posterior
             for statistic in ("estimate", "spread"):
                 want, got = getattr(reference, statistic)(), getattr(posterior, statistic)()
@@ -57,11 +59,12 @@ def test_the_pruned_posterior_reports_the_unpruned_numbers_bit_for_bit(task):
             alive_fractions.append(posterior.alive().mean())
             concentrated += int((posterior._marginal()["weights"].max(axis=1) > CONCENTRATED).sum())
     # the comparison is not vacuous: most node-steps were pruned at times, the vertex estimate was reported, and
-    # sub-envs were reset (time limits, overheats) and revived in the middle of the batch
-    assert min(alive_fractions) < 0.5 and concentrated > 0 and resets >= 3 * SUB_ENVS
+    # sub-envs were reset and revived in the middle of the batch, at time limits and at terminations (a coil past its
+    # temperature limit or an output past its bound)
+    assert min(alive_fractions) < 0.5 and concentrated > 0 and resets >= 3 * SUB_ENVS and terminations > 0
 
 
-def test_a_dead_node_has_weight_zero_in_the_unpruned_posterior():
+def test_the_dead_gap_lies_past_the_underflow_of_exp_for_every_k_marginal():
     # the marginal over k of a T0 node lies at most log(k_nodes) above its best k node: past DEAD_GAP, below the
     # underflow of exp, with room for a comeback of evidence
     assert DEAD_GAP > -EXP_ZERO_BELOW + np.log(K_TASK_NODES[1]) + 100.0
