@@ -147,7 +147,7 @@ class Frame:
     def of(cls, recording) -> "Frame":
         field, time = recording.field, recording.time
         return cls(h_max=float(np.max(np.abs(field))) or 1.0, duration=float(time[-1] - time[0]),
-                   dt=float(np.median(np.diff(time))), rate=np.abs(np.diff(field)) / np.diff(time))
+                   dt=sample_interval(recording), rate=np.abs(np.diff(field)) / np.diff(time))
 
 
 def _output_free(recording, structure, channel) -> bool:

@@ -460,3 +460,14 @@ def test_the_block_check_records_which_main_parameter_disagrees(monkeypatch):
         assert out.plausible is plausible, out.reasons
         assert out.disagreeing == ([] if plausible else ["k_e"])
         assert out.only_form_doubts is (not plausible) and out.at_bound == []
+
+
+def test_a_rejected_reason_carries_one_tag_at_most():
+    """only_form_doubts counts one tag per reason: a reason tagged both as a bound and as a disagreement would let an
+    untagged reason slip through, so reject refuses it."""
+    out = Plausibility()
+    with pytest.raises(ValueError, match="either a bound or a disagreement"):
+        out.reject("beta_k at its bound and disagreeing", at_bound="beta_k", disagreeing="beta_k")
+    out.reject("beta_k = 0.05 sits at the bound", at_bound="beta_k")
+    out.reject("the fitted input map is not monotone")
+    assert not out.only_form_doubts
