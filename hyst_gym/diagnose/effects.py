@@ -30,8 +30,11 @@ CHANNEL_SETS = ("magnetization", "displacement", "both")
 #: Parameter names of the per-channel families (one set per output channel).
 SENSOR_MAP_NAMES = {"magnetization": ("sensor_quadratic_m", "sensor_cubic_m"),
                     "displacement": ("sensor_quadratic_x", "sensor_cubic_x")}
-DRIFT_NAMES = {"magnetization": ("drift_linear_m", "drift_quadratic_m"),
-               "displacement": ("drift_linear_x", "drift_quadratic_x")}
+#: The sensor offset drift's coefficients per channel: the offset d1*f + d2*f^2 + d3*(1 - exp(-f/tau_drift)) in units
+#: of the channel's half-span (f: the record's time mapped to [0, 1]), the settling term's basis the gain drift's
+#: (:func:`.model.settling`).
+DRIFT_NAMES = {"magnetization": ("drift_linear_m", "drift_quadratic_m", "drift_settling_m"),
+               "displacement": ("drift_linear_x", "drift_quadratic_x", "drift_settling_x")}
 #: The sensor gain drift's coefficients per channel, in the order :func:`.model.gain_drift_factor` takes them:
 #: the relative gain change g1*f + g2*(1 - exp(-f/tau_gain)) (f: the record's time mapped to [0, 1]).
 GAIN_DRIFT_NAMES = {"magnetization": ("gain_drift_linear_m", "gain_drift_settling_m"),
@@ -218,6 +221,10 @@ def _thermal_parameters(recording, structure, base_values):
         # the family's heating law: drive ~ |H|^p (Joule heating of a current-driven coil: p = 2;
         # core or hysteresis loss: p between 1 and 3)
         "heating_exponent": Parameter("heating_exponent", 2.0, 0.5, 4.0, "1", scale=0.5),
+        # the network's second stage (kernels.THERMAL_LAG_COLUMNS): the rod lagging the coil by tau_th2, seeing the
+        # share thermal_share of the coil's rise directly; share 1 is the one-stage law (the value a first fit holds)
+        "tau_th2": Parameter("tau_th2", 0.3 * frame.duration, frame.dt, 1e3 * frame.duration, "s", log=True),
+        "thermal_share": Parameter("thermal_share", 1.0, 0.0, 1.0, "1", scale=0.5),
     }
 
 
@@ -296,6 +303,13 @@ def _per_channel_terms(names_by_channel, lower, upper, scale, unit="1 (of the ch
                 out[name] = Parameter(name, 0.0, lower, upper, unit, scale=scale, free=free)
         return out
     return build
+
+
+def _offset_drift_parameters(recording, structure, base_values):
+    # the settling time is shared by the channels (one warm-up of the rig), as the gain drift's
+    out = {"tau_drift": Parameter("tau_drift", 0.5, 0.03, 10.0, "1 (of the record's length)", log=True)}
+    out.update(_per_channel_terms(DRIFT_NAMES, -1.0, 1.0, 0.01)(recording, structure, base_values))
+    return out
 
 
 def _gain_drift_parameters(recording, structure, base_values):
@@ -474,8 +488,12 @@ def _sensor_map_slopes(values, channels, u):
 
 
 def temperature_rise_trace(recording, values) -> np.ndarray:
-    """K per sample: the fitted thermal model's temperature rise, dT/dt = heating*H^2 - T/tau_th
-    integrated exactly over each sample interval (H held), from 0 at the first sample."""
+    """K per sample: the fitted thermal model's temperature rise that the material sees. The heated stage,
+    dT/dt = heating*|H|^p - T/tau_th, integrated exactly over each sample interval (H held), from 0 at the first
+    sample; with a second stage (``tau_th2`` > 0, :data:`.kernels.THERMAL_LAG_COLUMNS`) the share ``thermal_share``
+    of it plus the rest of the stage lagging it."""
+    from .kernels import lagged_rise_trace
+
     decay = np.exp(-np.diff(recording.time) / values["tau_th"])
     exponent = values.get("heating_exponent", 2.0)
     h_ref = float(np.sqrt(np.mean(recording.field ** 2))) or 1.0
@@ -483,7 +501,12 @@ def temperature_rise_trace(recording, values) -> np.ndarray:
     trace = np.zeros(len(recording.time))
     for i, (factor, target) in enumerate(zip(decay, drive)):
         trace[i + 1] = target + (trace[i] - target) * factor
-    return trace
+    tau2 = values.get("tau_th2", 0.0)
+    if tau2 <= 0.0:
+        return trace
+    share = values.get("thermal_share", 1.0)
+    lagged = lagged_rise_trace(np.ascontiguousarray(recording.time, dtype=float), trace, float(tau2))
+    return share * trace + (1.0 - share) * lagged
 
 
 def record_temperature_rise(recording, values) -> float:
@@ -512,7 +535,11 @@ def thermal_change_words(recording, values) -> str:
 
 
 def _thermal_details(values, recording) -> str:
-    return f" ({thermal_change_words(recording, values)})"
+    network = ""
+    if values.get("tau_th2", 0.0) > 0.0 and values.get("thermal_share", 1.0) < 1.0:
+        network = (f"; the material lags the heated stage: a second stage of {values['tau_th2']:.3g} s, "
+                   f"{100 * values['thermal_share']:.3g} % of the heated stage's rise seen directly")
+    return f" ({thermal_change_words(recording, values)}{network})"
 
 
 def _quadratic_details(values, recording) -> str:
@@ -674,11 +701,13 @@ _REGISTERED = (
         name="thermal_drift", slot="time variation of the material parameters (a(t), Ms(t), k(t), c(t))",
         words="thermal drift: the material heats up during the record and its anhysteretic parameter a "
               "moves with temperature (a ~ T, eq. 4), its Ms, pinning k and reversibility c with it",
-        parameter_names=("heating", "tau_th", "beta_Ms", "heating_exponent", "beta_k", "beta_c"),
+        parameter_names=("heating", "tau_th", "beta_Ms", "heating_exponent", "beta_k", "beta_c", "tau_th2",
+                         "thermal_share"),
         parameters=_thermal_parameters,
         identified_by="heating", applies=_always, rate_dependent=False, rescue=("heating",),
         starts=_thermal_starts, strategy="staged_pinning",
-        search_ranges=("tau_th", "heating_exponent", "beta_Ms", "beta_k", "beta_c"), details=_thermal_details,
+        search_ranges=("tau_th", "heating_exponent", "beta_Ms", "beta_k", "beta_c", "tau_th2", "thermal_share"),
+        details=_thermal_details,
         relative_changes=thermal_relative_changes,
         confusable={"anhysteretic_shape": _everywhere(_TEMPERATURE),
                     "delta_e": {"displacement": _TEMPERATURE}}),
@@ -804,10 +833,13 @@ _REGISTERED = (
                     "small_loop": {"displacement": _RECORD_M}}),
     Effect(
         name="sensor_drift", slot="sensor offset (a slow drift)",
-        words="a slow drift of a sensor's offset over the record (plotted in sensor_drift.png)",
-        parameter_names=DRIFT_NAMES["magnetization"] + DRIFT_NAMES["displacement"],
-        parameters=_per_channel_terms(DRIFT_NAMES, -1.0, 1.0, 0.01), identified_by=BestDetermined(),
-        applies=_always, rate_dependent=False, rescue=None, strategy="linear_sensor", channel_terms=DRIFT_NAMES,
+        words="a slow drift of a sensor's offset over the record, d1*f + d2*f^2 + d3*(1 - exp(-f/tau_drift)) "
+              "(f: the record's time mapped to [0, 1]; zeroed at the start; plotted in sensor_drift.png)",
+        parameter_names=("tau_drift",) + DRIFT_NAMES["magnetization"] + DRIFT_NAMES["displacement"],
+        parameters=_offset_drift_parameters,
+        identified_by=BestDetermined(DRIFT_NAMES["magnetization"] + DRIFT_NAMES["displacement"]),
+        applies=_always, rate_dependent=False, rescue=None, strategy="linear_sensor_scan", channel_terms=DRIFT_NAMES,
+        search_ranges=("tau_drift",),
         confusable={"thermal_drift": _everywhere(_TEMPERATURE)}),
     Effect(
         # its own effect beside sensor_drift, not a widening of it: a gain scales the reading, an offset shifts

@@ -87,7 +87,7 @@ def measurement_for(names, values) -> str:
         return "drive closer to saturation"
     if {"a", "k", "rho", "c", "chi_r"} & set(names):
         return "drive loops at several amplitudes with reversals (minor loops)"
-    if {"heating", "tau_th", "beta_Ms"} & set(names):
+    if {"heating", "tau_th", "beta_Ms", "tau_th2", "thermal_share"} & set(names):
         return "record the coil or rod temperature, or a longer record"
     return "a longer record with a richer drive"
 

@@ -20,7 +20,9 @@ parameter is zero:
   ``theta' = q*H^2 - theta/tau`` (Joule heating ~ I^2 ~ H^2, eq. (11)), integrated
   exactly with H^2 held at its step mean, and ``a(T) = a*(T_amb + theta)/T_amb`` (4)
   (a proportional to absolute temperature); optionally ``Ms(T) = Ms*(1 - beta*theta)``,
-  ``k(T) = k*(1 - beta_k*theta)`` and ``c(T) = c*(1 - beta_c*theta)`` (:data:`PINNING_DRIFT_COLUMNS`).
+  ``k(T) = k*(1 - beta_k*theta)`` and ``c(T) = c*(1 - beta_c*theta)`` (:data:`PINNING_DRIFT_COLUMNS`);
+  optionally a second thermal stage (:data:`THERMAL_LAG_COLUMNS`): the rod lags the coil,
+  ``tau2*theta2' = theta - theta2``, and sees ``share*theta + (1 - share)*theta2``.
 
 Every model starts demagnetized (M = 0) at H = 0 and is first brought quasi-statically to
 the first recorded field, so that the first sample is on the virgin curve.
@@ -62,6 +64,15 @@ PINNING_DRIFT_COLUMNS = ("beta_k", "beta_c")
 #: Rows with another p run in :func:`simulate_lanes` only, which steps each lane with its own curve.
 CURVE_COLUMNS = ("knee_exponent",)
 KNEE_COLUMN = len(MAGNETIC_COLUMNS) + len(PINNING_DRIFT_COLUMNS)
+#: Optional trailing columns after :data:`CURVE_COLUMNS`: the heating network's second stage. The rod's temperature
+#: lags the coil's (the heated stage, ``theta``) with the time constant ``tau_th2`` (s), ``tau_th2*theta2' = theta -
+#: theta2``, and the material sees ``thermal_share*theta + (1 - thermal_share)*theta2``: a series network (coil, then
+#: rod) at share 0, two parallel paths (a fast and a slow one) at a share between. ``tau_th2 = 0``, or no such
+#: columns, is the one-stage law (the rod at the coil's temperature), so rows written before them keep their numbers.
+#: Why: a coil that heats a rod through its former and its mount warms it with two time constants; the one-stage law
+#: starts the rise at full slope where the rod's starts flat (experiments/other_forms.py's heating networks).
+THERMAL_LAG_COLUMNS = ("tau_th2", "thermal_share")
+THERMAL_LAG_COLUMN = KNEE_COLUMN + len(CURVE_COLUMNS)
 AMBIENT_TEMPERATURE = ROOM_TEMPERATURE  # K, reference temperature of the fitted a (eq. 4)
 #: The Delta-E family's relative stiffness change is clipped at this (a stiffness that stays positive) before the
 #: lumped step integrates it (:func:`varying_stiffness_response`); the report plots the same clipped law.
@@ -159,6 +170,14 @@ class LaneMaterial(NamedTuple):
     c: np.ndarray
 
 
+class LaneHeat(NamedTuple):
+    """Per lane of :func:`simulate_lanes`, the heating network's state: the coil's temperature rise and the lagged
+    stage's (K; :data:`THERMAL_LAG_COLUMNS`)."""
+
+    coil: np.ndarray
+    lagged: np.ndarray
+
+
 def lane_passes(count: int) -> int:
     """Compiled passes over the record of :func:`simulate_lanes` for ``count`` lanes: one per
     :data:`BANK_LANES` of them (a pass costs about the same for one lane as for a full bank)."""
@@ -186,7 +205,7 @@ def simulate_lanes(time, fields, field_index, params, h_ref, kind, max_field_ste
         row_of[i] = min(i, n_members - 1)
     m = np.zeros(width)
     he = np.zeros(width)
-    theta = np.zeros(width)
+    heat = LaneHeat(np.zeros(width), np.zeros(width))
     a = np.empty(width)
     k = np.empty(width)
     Ms = np.empty(width)
@@ -230,7 +249,7 @@ def simulate_lanes(time, fields, field_index, params, h_ref, kind, max_field_ste
             f = field_index[row_of[i]]
             heating, k_e = row[7], row[6]
             if heating != 0.0:
-                _heat(i, row, fields[f, t - 1], fields[f, t], h_ref[f], dt, ambient, theta, a, k, Ms, c)
+                _heat(i, row, fields[f, t - 1], fields[f, t], h_ref[f], dt, ambient, heat, a, k, Ms, c)
             target = fields[f, t] + row[5]
             m_old[i] = m[i]
             if k_e > 0.0:
@@ -311,25 +330,77 @@ def _plan(i, field_from, field_to, material, alpha, max_field_step, plan):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _heat(i, row, field_from, field_to, h_ref, dt, ambient, theta, a, k, Ms, c):
+def thermal_lag(row) -> tuple:
+    """(tau_th2 (s), thermal_share) of a magnetic row (:data:`THERMAL_LAG_COLUMNS`; (0, 1), the one-stage law,
+    without the columns)."""
+    if row.shape[0] > THERMAL_LAG_COLUMN + 1:
+        return row[THERMAL_LAG_COLUMN], row[THERMAL_LAG_COLUMN + 1]
+    return 0.0, 1.0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def thermal_stages_step(coil, lagged, heating, h_sq, tau, tau2, dt) -> tuple:
+    """One sample interval of the heating network: (coil rise, lagged rise), both K. The coil's stage
+    ``theta' = heating*H^2 - theta/tau`` exactly with H^2 held at its step mean ``h_sq``; the second stage
+    ``tau2*theta2' = theta - theta2`` exactly for a coil rise linear over the interval (first-order hold), and
+    equal to the coil's where ``tau2`` is 0."""
+    decay = math.exp(-dt / tau)
+    new_coil = coil * decay + heating * h_sq * tau * (1.0 - decay)
+    if tau2 <= 0.0:
+        return new_coil, new_coil
+    return new_coil, _lag_step(coil, new_coil, lagged, tau2, dt)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _lag_step(coil_from, coil_to, lagged, tau2, dt) -> float:
+    """The second stage ``tau2*theta2' = theta - theta2`` over one interval, exact for a coil rise linear from
+    ``coil_from`` to ``coil_to``: theta2(dt) = coil_to + (theta2(0) - coil_from)*e - slope*tau2*(1 - e)."""
+    decay2 = math.exp(-dt / tau2)
+    slope = (coil_to - coil_from) / dt
+    return coil_to + (lagged - coil_from) * decay2 - slope * tau2 * (1.0 - decay2)
+
+
+@njit(cache=True, nogil=True)
+def lagged_rise_trace(time, coil, tau2) -> np.ndarray:
+    """K per sample: the second stage's rise under the coil's rise ``coil`` (K per sample, linear between
+    samples), from 0 (:func:`_lag_step`; the coil's own trace where ``tau2`` is 0)."""
+    if tau2 <= 0.0:
+        return coil.copy()
+    out = np.zeros(coil.shape[0])
+    for t in range(1, coil.shape[0]):
+        out[t] = _lag_step(coil[t - 1], coil[t], out[t - 1], tau2, time[t] - time[t - 1])
+    return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def material_temperature_rise(coil, lagged, tau2, share) -> float:
+    """K: the rise the material sees, ``share*coil + (1 - share)*lagged`` (the coil's where ``tau2`` is 0)."""
+    if tau2 <= 0.0:
+        return coil
+    return share * coil + (1.0 - share) * lagged
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _heat(i, row, field_from, field_to, h_ref, dt, ambient, heat, a, k, Ms, c):
     """Lane ``i``'s temperature rise over one sample and its material parameters there (_simulate_one's)."""
     tau, beta, exponent = row[8], row[9], row[11]
     beta_k = row[12] if row.shape[0] > 12 else 0.0
     beta_c = row[13] if row.shape[0] > 13 else 0.0
+    tau2, share = thermal_lag(row)
     if exponent == 2.0:
         h_sq = mean_square_linear_kernel(field_from, field_to)
     else:  # trapezoid over the sample interval
         h_sq = h_ref * h_ref * 0.5 * ((abs(field_from) / h_ref) ** exponent + (abs(field_to) / h_ref) ** exponent)
-    decay = math.exp(-dt / tau)
-    theta[i] = theta[i] * decay + row[7] * h_sq * tau * (1.0 - decay)
-    a[i] = a_law_kernel(row[0], ambient + theta[i], ambient)
-    Ms[i] = row[3] * (1.0 - beta * theta[i])
+    heat.coil[i], heat.lagged[i] = thermal_stages_step(heat.coil[i], heat.lagged[i], row[7], h_sq, tau, tau2, dt)
+    theta = material_temperature_rise(heat.coil[i], heat.lagged[i], tau2, share)
+    a[i] = a_law_kernel(row[0], ambient + theta, ambient)
+    Ms[i] = row[3] * (1.0 - beta * theta)
     if Ms[i] < 1e-3 * row[3]:
         Ms[i] = 1e-3 * row[3]
     if beta_k != 0.0:
-        k[i] = max(row[1] * (1.0 - beta_k * theta[i]), 1e-3 * row[1])
+        k[i] = max(row[1] * (1.0 - beta_k * theta), 1e-3 * row[1])
     if beta_c != 0.0:
-        c[i] = min(max(row[4] * (1.0 - beta_c * theta[i]), 0.0), 0.999)
+        c[i] = min(max(row[4] * (1.0 - beta_c * theta), 0.0), 0.999)
 
 
 @njit(cache=True, nogil=True, inline="always", error_model="numpy")
@@ -458,6 +529,7 @@ def _simulate_one(time, field, row, kind, max_field_step, ambient, out, b):
     exponent = row[11]
     beta_k = row[12] if row.shape[0] > 12 else 0.0
     beta_c = row[13] if row.shape[0] > 13 else 0.0
+    tau2, share = thermal_lag(row)
     k0 = k
     c0 = c
     # the heating drive heating*|H|^p is written heating*h_ref^2*(|H|/h_ref)^p with h_ref the record's RMS
@@ -465,7 +537,8 @@ def _simulate_one(time, field, row, kind, max_field_step, ambient, out, b):
     h_ref = math.sqrt(np.mean(field * field)) + 1e-300
     m = _advance(0.0, 0.0, field[0] + H0, a0, k, alpha, Ms0, c, kind, max_field_step)
     he = field[0] + H0
-    theta = 0.0
+    coil = 0.0
+    lagged = 0.0
     out[0, b] = m
     a = a0
     Ms = Ms0
@@ -477,8 +550,8 @@ def _simulate_one(time, field, row, kind, max_field_step, ambient, out, b):
             else:  # trapezoid over the sample interval
                 h_sq = h_ref * h_ref * 0.5 * ((abs(field[t - 1]) / h_ref) ** exponent
                                               + (abs(field[t]) / h_ref) ** exponent)
-            decay = math.exp(-dt / tau)
-            theta = theta * decay + heating * h_sq * tau * (1.0 - decay)
+            coil, lagged = thermal_stages_step(coil, lagged, heating, h_sq, tau, tau2, dt)
+            theta = material_temperature_rise(coil, lagged, tau2, share)
             a = a_law_kernel(a0, ambient + theta, ambient)  # (4), a0 at the ambient temperature
             Ms = Ms0 * (1.0 - beta * theta)
             if Ms < 1e-3 * Ms0:

@@ -69,10 +69,11 @@ the base model when those parameters vanish:
 ``sensor_map``                  ``sensor_quadratic_<ch>``, ``sensor_cubic_<ch>``: each output sensor
                                 has a static nonlinearity, ``y_rec = y + s*(q2*v^2 + q3*v^3)`` with
                                 v = (y - centre)/s over the recorded channel's range (half-span s)
-``sensor_drift``                ``drift_linear_<ch>``, ``drift_quadratic_<ch>``: a slow additive drift
-                                of each sensor's offset since the record's start (the sensor zeroed
-                                there), ``s*(d1*f + d2*f^2)`` with f the record's time mapped to
-                                [0, 1]
+``sensor_drift``                ``drift_linear_<ch>``, ``drift_quadratic_<ch>``, ``drift_settling_<ch>``,
+                                ``tau_drift`` (record lengths, shared): a slow additive drift of each
+                                sensor's offset since the record's start (the sensor zeroed there),
+                                ``s*(d1*f + d2*f^2 + d3*(1 - exp(-f/tau_drift)))`` with f the record's
+                                time mapped to [0, 1]
 ``sensor_gain_drift``           ``gain_drift_linear_<ch>``, ``gain_drift_settling_<ch>``, ``tau_gain``
                                 (record lengths, shared): a slow drift of each sensor's gain since
                                 the record's start (calibrated there): the reading is
@@ -244,8 +245,9 @@ class Model:
         # the pinning's and the reversibility's time variation (thermal_drift), and the knee exponent of the Ising
         # curve (anhysteretic_shape; a Langevin curve has none): trailing columns the kernel reads
         knee = float(np.exp(values.get("knee_log_p", 0.0))) if curve == "ising" else 1.0
+        # the heating network's second stage (THERMAL_LAG_COLUMNS: tau_th2 = 0 the one-stage law)
         return np.array([row[c] for c in MAGNETIC_COLUMNS] + [values.get(n, 0.0) for n in PINNING_DRIFT_COLUMNS]
-                        + [knee])
+                        + [knee, values.get("tau_th2", 0.0), values.get("thermal_share", 1.0)])
 
     def magnetization(self, values_list) -> np.ndarray:
         """Simulated M (A/m) for each values dict: shape (T, len(values_list))."""
@@ -355,6 +357,8 @@ class Model:
         if any(drift):
             fraction = self._record_fraction
             out = out + half_span * (drift[0] * fraction + drift[1] * fraction ** 2)
+            if drift[2]:  # the settling term (a warm-up), the gain drift's basis
+                out = out + half_span * drift[2] * settling(fraction, values["tau_drift"])
         if any(mains):
             phase = 2 * np.pi * values["mains_hz"] * self._time
             out = out + half_span * (mains[0] * np.cos(phase) + mains[1] * np.sin(phase)
@@ -427,16 +431,23 @@ def relative_stiffness_change(magnetization, values):
     return change + quartic * (m ** 4 - m0 ** 4) if quartic else change
 
 
-def gain_drift_factor(fraction, linear, settling, tau):
+def gain_drift_factor(fraction, linear, settling_share, tau):
     """The ``sensor_gain_drift`` family: the sensor's gain relative to its gain at the record's start,
-    ``1 + linear*f + settling*(1 - exp(-f/tau))`` at ``fraction`` f (the record's time mapped to [0, 1]; tau
+    ``1 + linear*f + settling_share*(1 - exp(-f/tau))`` at ``fraction`` f (the record's time mapped to [0, 1]; tau
     in record lengths).
 
     Why a settling term and not a polynomial in f: the held-out block is the record's end, so the family
     must extrapolate; a warm-up settles, where a quadratic fitted to the first 70 % turns back (it misses the
     end of a settling with tau = 0.3 records by ~19 % of its size, the settling term not at all). A linear
     creep is the member with settling = 0, a quadratic one the limit of a long tau."""
-    return 1.0 + linear * fraction + settling * -np.expm1(-fraction / tau)
+    return 1.0 + linear * fraction + settling_share * settling(fraction, tau)
+
+
+def settling(fraction, tau):
+    """``1 - exp(-f/tau)`` at ``fraction`` f (the record's time mapped to [0, 1]; tau in record lengths): a
+    warm-up that settles, the drifts' basis beside their polynomial terms (:func:`gain_drift_factor`, the
+    ``sensor_drift`` family)."""
+    return -np.expm1(-fraction / tau)
 
 
 #: Damping ratio of the input dynamics' pair of poles: a Butterworth pair (an amplifier's bandwidth). Why fixed:

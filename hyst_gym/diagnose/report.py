@@ -21,6 +21,7 @@ from .model import (FEM_ROD_NAMES, channel_range, even_law_forcing, mapped_field
 __all__ = ["EFFECT_WORDS", "UNITS", "explain", "physical_params", "record_temperature_rise", "slot_shapes",
            "temperature_rise_trace", "thermal_change_words", "write_json", "write_plots"]
 UNITS = {"H0": "A/m", "k_e": "s", "heating": "K/s per (A/m)^2", "heating_exponent": "", "tau_th": "s", "beta_Ms": "1/K",
+         "tau_th2": "s", "thermal_share": "",
          "tau_m": "s", "tau_x": "s", "tau2_m": "s", "tau2_x": "s", "tau2_in": "s", "zeta_q": "m/s^2 per (A/m)^2",
          "zeta_4": "m/s^2 per A/m", "f2": "Hz", "damping2": "", "g2": "",
          "delta_e": "", "delta_e_linear": "", "delta_e_cubic": "", "delta_e_quartic": "",

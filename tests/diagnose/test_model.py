@@ -229,8 +229,8 @@ def test_static_maps_must_be_monotone_to_be_plausible():
 
 
 def test_additive_sensor_terms_are_what_they_say():
-    """sensor_drift adds f and f^2 (f: the time mapped to [0, 1], 0 at the start) in units of the channel's
-    half-span, mains_pickup a 50/60 Hz sinusoid and its third harmonic (the FFT peaks at the stated
+    """sensor_drift adds f, f^2 and 1 - exp(-f/tau) (f: the time mapped to [0, 1], 0 at the start) in units of
+    the channel's half-span, mains_pickup a 50/60 Hz sinusoid and its third harmonic (the FFT peaks at the stated
     frequencies); both vanish at zero coefficients."""
     from hyst_gym.diagnose.hypothesize import mains_starts
     from hyst_gym.diagnose.model import channel_range
@@ -248,6 +248,10 @@ def test_additive_sensor_terms_are_what_they_say():
     half = channel_range(recording.displacement)[1]
     np.testing.assert_allclose(drifted["displacement"] - plain["displacement"],
                                half * (0.1 * fraction - 0.05 * fraction ** 2), rtol=1e-9, atol=1e-15)
+    # the settling term: a warm-up of the offset, 1 - exp(-f/tau_drift), the gain drift's basis
+    settled = model.predict(dict(values, drift_settling_x=0.07, tau_drift=0.2))
+    np.testing.assert_allclose(settled["displacement"] - plain["displacement"],
+                               half * 0.07 * (1.0 - np.exp(-fraction / 0.2)), rtol=1e-9, atol=1e-15)
     # a drift of the offset since the start: the first sample is the sensor's zero
     assert drifted["displacement"][0] == plain["displacement"][0]
     np.testing.assert_array_equal(drifted["magnetization"], plain["magnetization"])
