@@ -21,6 +21,7 @@ from types import MappingProxyType
 import numpy as np
 
 from ..physics.constants import PAPER_STIFFNESS, ROOM_TEMPERATURE
+from .kernels import lagged_rise_trace
 from .parameter import Parameter, slope_factor
 
 #: Saturation magnetization (A/m) assumed where a record has no magnetization channel.
@@ -492,8 +493,6 @@ def temperature_rise_trace(recording, values) -> np.ndarray:
     dT/dt = heating*|H|^p - T/tau_th, integrated exactly over each sample interval (H held), from 0 at the first
     sample; with a second stage (``tau_th2`` > 0, :data:`.kernels.THERMAL_LAG_COLUMNS`) the share ``thermal_share``
     of it plus the rest of the stage lagging it."""
-    from .kernels import lagged_rise_trace
-
     decay = np.exp(-np.diff(recording.time) / values["tau_th"])
     exponent = values.get("heating_exponent", 2.0)
     h_ref = float(np.sqrt(np.mean(recording.field ** 2))) or 1.0
