@@ -4,13 +4,17 @@ spread, and the PE integrand of the env's model bank, at every step of 20 sub-en
 overheats and the restarts after them included), under the benchmark's random actions, the tuned open-loop sine and a
 feedback hold side by side. ``data/k_task_trajectory.npz`` was recorded by :func:`trajectory` with the code of commit
 0131604 (before the split bank passes of ``physics/hysteresis.py`` and the fused node-plant step of
-``envs/kernels.py``); 20 sub-envs of 216 node plants step in two threads (posterior.SPLIT_MIN_NODES)."""
+``envs/kernels.py``, and the simulator's plants and model bank in threads of ``envs/core.py``); 20 sub-envs of 216
+node plants step in two threads (posterior.SPLIT_MIN_NODES)."""
 
 import pathlib
 
 import numpy as np
+import pytest
 
 import hyst_gym  # noqa: F401
+from hyst_gym.envs import core as core_module
+from hyst_gym.envs import posterior as posterior_module
 from hyst_gym.envs.suite_v2 import HotCalibrateUnknownKVectorEnv
 
 RECORDING = pathlib.Path(__file__).resolve().parent / "data" / "k_task_trajectory.npz"
@@ -45,8 +49,17 @@ def trajectory(vector_env_class=HotCalibrateUnknownKVectorEnv) -> dict:
     return {key: np.stack(values) for key, values in record.items()}
 
 
-def test_the_k_task_reproduces_its_recorded_trajectory_bit_for_bit():
+@pytest.mark.parametrize("split", [False, True])
+def test_the_k_task_reproduces_its_recorded_trajectory_bit_for_bit(split, monkeypatch):
+    """``split``: the simulator's plants and model bank and the grid posterior's node plants step in two blocks of
+    sub-envs in two threads (at 20 sub-envs the simulator's bank, 640 models, is below SPLIT_MIN_NODES)."""
+    if split:
+        for module in (core_module, posterior_module):
+            monkeypatch.setattr(module, "SPLIT_MIN_NODES", 1)
+            monkeypatch.setattr(module, "step_threads", lambda: 2)
     recorded = np.load(RECORDING)
+    env = HotCalibrateUnknownKVectorEnv(SUB_ENVS)
+    assert bool(env.sim._plant_blocks) == split and (len(env.posterior._blocks) == 2 or not split)
     got = trajectory()
     for key in KEYS:
         assert got[key].dtype == recorded[key].dtype, key
