@@ -40,20 +40,25 @@ width reads a there. Alive share of the node-steps (same runs): 31-38 % under th
 25-30 % on HotCalibrate-v0, 100 % under ``idle`` (no excitation, nothing learned), and 70 % and 67 % under the
 benchmark's random actions (the field wanders +-2500 A/m a step about 0 and reveals little).
 
-Speed (same numbers bit for bit, ``tests/envs/test_posterior_speed.py``). Nearly all of a calibration
-env's step is model (6) in the node plants: n*nodes*k_nodes of them (65,536 at n = 1024 with 64 nodes, 221,184
-with the k task's 24 x 9), about 37 ns a node-step; pruning steps only the alive ones. A restart copies a start
-state stored once (a node's start draws nothing); from :data:`SPLIT_MIN_NODES` node plants the step runs in two
-blocks of sub-envs in two threads (its kernels release the GIL; a row's numbers depend on its row alone); the
-marginal, weights, mean, spread and estimate are compiled kernels around numpy's exp and log (numpy's order of
-summation kept, exp left out where it underflows to 0, numpy's slow path, and dead T0 nodes left out). Measured at
-n = 1024, before and after pruning alternately in one run (1-min load 1.4-1.9 from another job, 2 cores): the k
-task 112,000-135,000 -> 147,000-151,000 steps/s under random actions (the benchmark's input), 126,000-131,000 ->
-181,000-191,000 under a sine of 40 + 40 kA/m at 0.5 Hz (HotCalibrate-v0's tuned open-loop design); HotCalibrate-v0
-269,000-275,000 -> 258,000-284,000 under random actions (unchanged within the noise), 278,000-297,000 ->
-271,000-349,000 under the sine. **The k task stays below the suite's target of 200,000 at n = 1024** under random
-actions: 70 % of its node-steps stay alive there, and the rest of the env's step (about 2 ms at n = 1024) does
-not shrink.
+Speed (same numbers bit for bit, ``tests/envs/test_posterior_speed.py`` and, for the k task's whole env,
+``tests/envs/test_k_task_trajectory.py``). Nearly all of a calibration env's step is model (6) in the node plants:
+n*nodes*k_nodes of them (65,536 at n = 1024 with 64 nodes, 221,184 with the k task's 24 x 9); pruning steps only the
+alive ones. A sub-env's node plants are one bank under one field, stepped in passes over the bank
+(:func:`~hyst_gym.physics.hysteresis.advance_shared`: the anhysteretic curve, the half step, the curve, the full
+step; about 1.7x faster than one model's whole midpoint step at a time); its update, pruning and step are one pass
+over its node plants (:func:`~.kernels.posterior_step`), its thermal model is stepped once per T0 node (the k nodes of
+a T0 node share it) and its first-order transducer without the state loops. A restart copies a start state stored
+once (a node's start draws nothing); from :data:`SPLIT_MIN_NODES` node plants the step runs in two blocks of
+sub-envs in two threads (its kernels release the GIL; a row's numbers depend on its row alone), and so do the
+simulator's own plants and model bank (:meth:`~.core.BatchSimulator.step`); the marginal, weights, mean, spread and
+estimate are compiled kernels around numpy's exp and log (numpy's order of summation kept, exp left out where it
+underflows to 0, numpy's slow path, and dead T0 nodes left out). History at n = 1024 under random actions (the
+benchmark's input), each change measured before and after alternately in one process on 2 cores: pruning took the
+k task from 112,000-135,000 to 147,000-151,000 steps/s (1-min load 1.4-1.9 from another job; under a sine of 40 +
+40 kA/m at 0.5 Hz, HotCalibrate-v0's tuned open-loop design, 126,000-131,000 -> 181,000-191,000; HotCalibrate-v0
+unchanged within the noise); the passes, the one pass per sub-env and the simulator's threads then took it 1.50x
+faster (median over 6 rounds, 1.34-1.52 per round, at a 1-min load of 3.8-4.1 from another job on the same 2
+cores: 48,800 -> 73,500 steps/s there) and HotCalibrate-v0 1.08x.
 """
 
 from __future__ import annotations
