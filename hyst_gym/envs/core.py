@@ -465,6 +465,20 @@ class BatchSimulator:
             self._plant_blocks = self._split_plants()
             self._threads = WorkerThreads(step_threads() - 1, "hyst-gym-simulator")
 
+    def __getstate__(self) -> dict:
+        # A copy (pickle, deepcopy) makes its own blocks and threads: a block's arrays are views of the simulator's,
+        # which a copy would make arrays of their own (no longer the simulator's), and a pool does not copy.
+        state = dict(self.__dict__)
+        state.pop("_plant_blocks", None)
+        state.pop("_threads", None)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        if self.mode == IDENTIFICATION:
+            self._plant_blocks = self._split_plants()
+            self._threads = WorkerThreads(step_threads() - 1, "hyst-gym-simulator")
+
     def _split_plants(self) -> list:
         """The blocks of sub-envs whose plants and model bank an Identification step moves in :func:`step_threads`
         threads at once (:func:`~.kernels.identification_plants`): (slice of sub-envs, its kernel arguments after

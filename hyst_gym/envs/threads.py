@@ -39,13 +39,6 @@ class WorkerThreads:
         self.name = name
         self._pool, self._pool_pid, self._lock = None, None, threading.Lock()
 
-    def __getstate__(self) -> dict:
-        # a copy (pickle, deepcopy) makes threads of its own, as a forked child does: a pool and a lock do not copy
-        return {"workers": self.workers, "name": self.name}
-
-    def __setstate__(self, state: dict) -> None:
-        self.__init__(state["workers"], state["name"])
-
     def pool(self) -> ThreadPoolExecutor:
         with self._lock:
             if self._pool is None or self._pool_pid != os.getpid():
