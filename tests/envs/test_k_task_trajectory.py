@@ -4,8 +4,8 @@ spread, and the PE integrand of the env's model bank, at every step of 20 sub-en
 overheats and the restarts after them included), under the benchmark's random actions, the tuned open-loop sine and a
 feedback hold side by side. ``data/k_task_trajectory.npz`` was recorded by :func:`trajectory` with the code of commit
 0131604 (before the split bank passes of ``physics/hysteresis.py`` and the fused node-plant step of
-``envs/kernels.py``, and the simulator's plants and model bank in threads of ``envs/core.py``); 20 sub-envs of 216
-node plants step in two threads (posterior.SPLIT_MIN_NODES)."""
+``envs/kernels.py``, and the simulator's plants and model bank in threads of ``envs/core.py``). 20 sub-envs of 216
+node plants are above posterior.SPLIT_MIN_NODES: on two cores the grid posterior steps in two threads."""
 
 import pathlib
 
