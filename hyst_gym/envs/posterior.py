@@ -56,9 +56,10 @@ underflows to 0, numpy's slow path, and dead T0 nodes left out). History at n = 
 benchmark's input), each change measured before and after alternately in one process on 2 cores: pruning took the
 k task from 112,000-135,000 to 147,000-151,000 steps/s (1-min load 1.4-1.9 from another job; under a sine of 40 +
 40 kA/m at 0.5 Hz, HotCalibrate-v0's tuned open-loop design, 126,000-131,000 -> 181,000-191,000; HotCalibrate-v0
-unchanged within the noise); the passes, the one pass per sub-env and the simulator's threads then took it 1.50x
-faster (median over 6 rounds, 1.34-1.52 per round, at a 1-min load of 3.8-4.1 from another job on the same 2
-cores: 48,800 -> 73,500 steps/s there) and HotCalibrate-v0 1.08x.
+unchanged within the noise); the passes, the one pass per sub-env and the simulator's threads then took it 1.46x
+faster (medians over 6 rounds, 86,500 -> 126,400 steps/s, 1.40-1.48 per round, 1-min load 0.4-0.6 on a machine
+slower than the one above; 1.50x at a load of 3.8-4.1 from another job on the same 2 cores) and HotCalibrate-v0
+1.08x.
 """
 
 from __future__ import annotations
