@@ -34,13 +34,16 @@ from ..physics import FirstOrderPlant, LumpedLinear, LumpedNonlinear
 from .config import MECHANICAL_ESTIMATOR_GAMMA, EnvConfig
 from .kernels import (EnvParams, EstimateView, ObservationLayout, PlantParams, PlantState, ScoreParams, StepBuffers,
                       announce_compilation, clip_actions, excitation_step, fill_info, fill_observation, finish_step,
-                      identification_step, plant_step)
+                      identification_commands, identification_plants, identification_step, plant_step)
+from .threads import SPLIT_MIN_NODES, WorkerThreads, block_edges, step_threads
 
 EXCITATION = "excitation"
 ESTIMATION = "estimation"
 IDENTIFICATION = "identification"
 MODES = (EXCITATION, ESTIMATION, IDENTIFICATION)
 
+#: the plant parameters that are per sub-env (:class:`~.kernels.PlantParams`; the others are shared by all)
+PER_ROW_PARAMS = ("k", "alpha", "Ms", "c")
 #: noise samples drawn per sub-env per refill (amortizes the per-generator call cost)
 NOISE_BLOCK = 128
 #: |normalized action| may exceed 1 by this much (float32 rounding) before it is an error
@@ -211,7 +214,8 @@ def step_kernels(mode: str, estimator: str) -> tuple:
     if uses_fused_step(mode, estimator):
         return (fill_observation, fill_info, excitation_step)
     if mode == IDENTIFICATION:
-        return (fill_observation, fill_info, identification_step)
+        return (fill_observation, fill_info, identification_step, identification_commands, identification_plants,
+                finish_step)
     return (fill_observation, fill_info, clip_actions, plant_step, finish_step)
 
 
@@ -455,6 +459,45 @@ class BatchSimulator:
         if self.mode == IDENTIFICATION:
             self._identification_tuples = as_kernel_tuples(self._plant, self._view, self._buffers, params,
                                                            self.bank.kernel_state, self.bank.kernel_params)
+            self._command_tuples = as_kernel_tuples(params, self._buffers)
+            self._plants_tuples = as_kernel_tuples(self._plant, self._plant_params, self.bank.kernel_state,
+                                                   self.bank.kernel_params)
+            self._plant_blocks = self._split_plants()
+            self._threads = WorkerThreads(step_threads() - 1, "hyst-gym-simulator")
+
+    def __getstate__(self) -> dict:
+        # A copy (pickle, deepcopy) makes its own blocks and threads: a block's arrays are views of the simulator's,
+        # which a copy would make arrays of their own (no longer the simulator's), and a pool does not copy.
+        state = dict(self.__dict__)
+        state.pop("_plant_blocks", None)
+        state.pop("_threads", None)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        if self.mode == IDENTIFICATION:
+            self._plant_blocks = self._split_plants()
+            self._threads = WorkerThreads(step_threads() - 1, "hyst-gym-simulator")
+
+    def _split_plants(self) -> list:
+        """The blocks of sub-envs whose plants and model bank an Identification step moves in :func:`step_threads`
+        threads at once (:func:`~.kernels.identification_plants`): (slice of sub-envs, its kernel arguments after
+        the commands: views of the arrays); empty (the one kernel for all, :func:`~.kernels.identification_step`)
+        with one thread or fewer than :data:`~.threads.SPLIT_MIN_NODES` bank models. The model bank is most of the
+        step (G models per sub-env; the rest, :func:`~.kernels.finish_step`, runs after the blocks, for all)."""
+        threads = min(step_threads(), self.n)
+        bank = self.bank.kernel_state
+        if threads < 2 or bank.magnetization.size < SPLIT_MIN_NODES:
+            return []
+        plant, params = self._plant, self._plant_params
+        blocks = []
+        for lo, hi in block_edges(self.n, threads):
+            rows = slice(lo, hi)
+            block_plant = plant._replace(**{name: getattr(plant, name)[rows] for name in plant._fields})
+            block_params = params._replace(**{name: getattr(params, name)[rows] for name in PER_ROW_PARAMS})
+            block_bank = bank._replace(**{name: getattr(bank, name)[rows] for name in bank._fields})
+            blocks.append((rows, as_kernel_tuples(block_plant, block_params, block_bank, self.bank.kernel_params)))
+        return blocks
 
     # ------------------------------------------------------------------ seeding and reset
 
@@ -683,6 +726,18 @@ class BatchSimulator:
                 self.check_actions(actions)  # raises, naming the value
             if status == 2:
                 raise ValueError("step: the simulated field or output is not finite")
+        elif self.mode == IDENTIFICATION and self._plant_blocks:
+            # identification_step in three parts, the middle one (the plants and the model bank) in blocks of
+            # sub-envs in threads once it runs compiled (its first call, which may compile it or stand in with its
+            # Python twin, and the twin itself run here, one call for all)
+            if not identification_commands(actions, *self._command_tuples):
+                self.check_actions(actions)  # raises, naming the value
+            if getattr(identification_plants, "overloads", None):
+                self._threads.run(self._step_plants, [(rows, active[rows], arguments)
+                                                      for rows, arguments in self._plant_blocks])
+            else:
+                identification_plants(self._command, active, *self._plants_tuples)
+            finish_step(*self._finish_tuples)
         elif self.mode == IDENTIFICATION:
             if identification_step(actions, active, *self._identification_tuples):
                 self.check_actions(actions)  # raises, naming the value
@@ -702,6 +757,10 @@ class BatchSimulator:
             self._record(self._rows)
         out = self._out
         return out["reward"], out["terminated"], out["truncated"]
+
+    def _step_plants(self, rows, active, arguments) -> None:
+        """:func:`~.kernels.identification_plants` of one block of sub-envs (in a thread)."""
+        identification_plants(self._command[rows], active, *arguments)
 
     def _refill_noise(self, rows):
         for row in rows:

@@ -40,33 +40,37 @@ width reads a there. Alive share of the node-steps (same runs): 31-38 % under th
 25-30 % on HotCalibrate-v0, 100 % under ``idle`` (no excitation, nothing learned), and 70 % and 67 % under the
 benchmark's random actions (the field wanders +-2500 A/m a step about 0 and reveals little).
 
-Speed (same numbers bit for bit, ``tests/envs/test_posterior_speed.py``). Nearly all of a calibration
-env's step is model (6) in the node plants: n*nodes*k_nodes of them (65,536 at n = 1024 with 64 nodes, 221,184
-with the k task's 24 x 9), about 37 ns a node-step; pruning steps only the alive ones. A restart copies a start
-state stored once (a node's start draws nothing); from :data:`SPLIT_MIN_NODES` node plants the step runs in two
-blocks of sub-envs in two threads (its kernels release the GIL; a row's numbers depend on its row alone); the
-marginal, weights, mean, spread and estimate are compiled kernels around numpy's exp and log (numpy's order of
-summation kept, exp left out where it underflows to 0, numpy's slow path, and dead T0 nodes left out). Measured at
-n = 1024, before and after pruning alternately in one run (1-min load 1.4-1.9 from another job, 2 cores): the k
-task 112,000-135,000 -> 147,000-151,000 steps/s under random actions (the benchmark's input), 126,000-131,000 ->
-181,000-191,000 under a sine of 40 + 40 kA/m at 0.5 Hz (HotCalibrate-v0's tuned open-loop design); HotCalibrate-v0
-269,000-275,000 -> 258,000-284,000 under random actions (unchanged within the noise), 278,000-297,000 ->
-271,000-349,000 under the sine. **The k task stays below the suite's target of 200,000 at n = 1024** under random
-actions: 70 % of its node-steps stay alive there, and the rest of the env's step (about 2 ms at n = 1024) does
-not shrink.
+Speed (same numbers bit for bit, ``tests/envs/test_posterior_speed.py`` and, for the k task's whole env,
+``tests/envs/test_k_task_trajectory.py``). Nearly all of a calibration env's step is model (6) in the node plants:
+n*nodes*k_nodes of them (65,536 at n = 1024 with 64 nodes, 221,184 with the k task's 24 x 9); pruning steps only the
+alive ones. A sub-env's node plants are one bank under one field, stepped in passes over the bank
+(:func:`~hyst_gym.physics.hysteresis.advance_shared`: the anhysteretic curve, the half step, the curve, the full
+step; about 1.7x faster than one model's whole midpoint step at a time); its update, pruning and step are one pass
+over its node plants (:func:`~.kernels.posterior_step`), its thermal model is stepped once per T0 node (the k nodes of
+a T0 node share it) and its first-order transducer without the state loops. A restart copies a start state stored
+once (a node's start draws nothing); from :data:`SPLIT_MIN_NODES` node plants the step runs in two blocks of
+sub-envs in two threads (its kernels release the GIL; a row's numbers depend on its row alone), and so do the
+simulator's own plants and model bank (:meth:`~.core.BatchSimulator.step`); the marginal, weights, mean, spread and
+estimate are compiled kernels around numpy's exp and log (numpy's order of summation kept, exp left out where it
+underflows to 0, numpy's slow path, and dead T0 nodes left out). History at n = 1024 under random actions (the
+benchmark's input), each change measured before and after alternately in one process on 2 cores: pruning took the
+k task from 112,000-135,000 to 147,000-151,000 steps/s (1-min load 1.4-1.9 from another job; under a sine of 40 +
+40 kA/m at 0.5 Hz, HotCalibrate-v0's tuned open-loop design, 126,000-131,000 -> 181,000-191,000; HotCalibrate-v0
+unchanged within the noise); the passes, the one pass per sub-env and the simulator's threads then took it 1.46x
+faster (medians over 6 rounds, 86,500 -> 126,400 steps/s, 1.40-1.48 per round, 1-min load 0.4-0.6 on a machine
+slower than the one above; 1.50x at a load of 3.8-4.1 from another job on the same 2 cores) and HotCalibrate-v0
+1.08x.
 """
 
 from __future__ import annotations
-
-import os
-import threading
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
 from ..estimation import as_kernel_tuples
 from .kernels import (AliveRows, LikelihoodParams, PruneParams, marginal_sums, marginal_terms, posterior_moments,
                       posterior_step, posterior_vertex, weight_terms)
+# SPLIT_MIN_NODES: the node plants of a grid posterior from which its step runs in step_threads() threads
+from .threads import SPLIT_MIN_NODES, WorkerThreads, block_edges, step_threads
 
 #: grid nodes of the start temperature per sub-environment
 POSTERIOR_NODES = 64
@@ -74,11 +78,6 @@ POSTERIOR_NODES = 64
 CONCENTRATED = 0.5
 #: grid nodes (start temperature, k) per sub-environment on a task with a k prior
 K_TASK_NODES = (24, 9)
-#: the node plants of a grid posterior from which its step runs in :func:`step_threads` threads (blocks of
-#: sub-envs; below it, the threads' hand-over costs more than the second core gains)
-SPLIT_MIN_NODES = 4096
-#: the most threads a grid posterior's step uses (the machine this package is measured on has 2 cores)
-MAX_STEP_THREADS = 2
 #: the node simulators' plant parameters that are per node plant (the others are shared by all)
 PER_NODE_PARAMS = ("k", "alpha", "Ms", "c")
 
@@ -96,15 +95,6 @@ DEAD_GAP = 1000.0
 #: the log-posterior of a dead node: far below any live node's, so that its weight is 0.0, and finite, so that the
 #: log-sum-exp over k of a T0 node whose nodes are all dead is a number (-inf - (-inf) would be NaN)
 DEAD_LOG_POST = -1.0e300
-
-
-def step_threads() -> int:
-    """Threads a grid posterior's step uses: the CPUs this process may run on, at most :data:`MAX_STEP_THREADS`."""
-    try:
-        cpus = len(os.sched_getaffinity(0))
-    except AttributeError:  # no sched_getaffinity (macOS, Windows)
-        cpus = os.cpu_count() or 1
-    return max(1, min(MAX_STEP_THREADS, cpus))
 
 
 def grid_sizes(k_prior, nodes: int | None = None, k_nodes: int | None = None) -> tuple[int, int]:
@@ -177,7 +167,7 @@ class GridPosterior:
         self._kernel_args = as_kernel_tuples(self._alive, self.sim._plant, self.sim._plant_params, self._likelihood,
                                              self._pruning)
         self._blocks = self._split(per)
-        self._pool, self._pool_pid, self._pool_lock = None, None, threading.Lock()
+        self._threads = WorkerThreads(step_threads() - 1, "hyst-gym-posterior")
         self._no_rows = np.zeros(0, dtype=np.int64)
         self._updating = np.zeros(self.n, dtype=bool)
         self._no_field = np.zeros(self.n)
@@ -226,10 +216,9 @@ class GridPosterior:
         threads = min(step_threads(), self.n)
         if threads < 2 or self.n * per < SPLIT_MIN_NODES:
             return []
-        edges = [self.n * b // threads for b in range(threads + 1)]
         plant, params = self.sim._plant, self.sim._plant_params
         blocks = []
-        for lo, hi in zip(edges[:-1], edges[1:]):
+        for lo, hi in block_edges(self.n, threads):
             nodes = slice(lo * per, hi * per)
             block_plant = plant._replace(**{name: getattr(plant, name)[nodes] for name in plant._fields})
             block_params = params._replace(**{name: getattr(params, name)[nodes] for name in PER_NODE_PARAMS})
@@ -296,23 +285,9 @@ class GridPosterior:
         if not self._blocks or not getattr(posterior_step, "overloads", None):
             posterior_step(updating, measured, self._log_post_flat, field, stepping, *self._kernel_args)
             return
-        calls = [(updating[rows], measured[rows], field[rows], stepping, rows, arguments, scratch)
-                 for rows, arguments, scratch in self._blocks]
-        others = [self._step_pool().submit(self._advance_block, *call) for call in calls[1:]]
-        self._advance_block(*calls[0])
-        for other in others:
-            other.result()
+        self._threads.run(self._advance_block, [(updating[rows], measured[rows], field[rows], stepping, rows,
+                                                 arguments, scratch) for rows, arguments, scratch in self._blocks])
         self._results_valid = True
-
-    def _step_pool(self) -> ThreadPoolExecutor:
-        """This posterior's worker threads (``step_threads() - 1``), made on the first threaded step and made again
-        in a forked child, whose copy of the pool has no threads."""
-        with self._pool_lock:
-            if self._pool is None or self._pool_pid != os.getpid():
-                self._pool = ThreadPoolExecutor(max_workers=max(1, step_threads() - 1),
-                                                thread_name_prefix="hyst-gym-posterior")
-                self._pool_pid = os.getpid()
-            return self._pool
 
     def _advance_block(self, updating, measured, field, stepping, rows, arguments, scratch) -> None:
         """:func:`~.kernels.posterior_step` and then :meth:`_marginal_rows` of one block of sub-envs (in a thread)."""
@@ -331,23 +306,27 @@ class GridPosterior:
         results = self._results
         joint, a_nodes, log_post = self.log_post[rows], self._a_nodes[rows], results["log_post"][rows]
         values, index = scratch["gather"]
+        exps = scratch["exps"]  # numpy's exp into a kept array, not a new one per call
+        first, stop = self._alive.first[rows], self._alive.stop[rows]
         if self.k_nodes > 1:  # with one k node, log_post is a view of the joint (the node itself: peak + log(1))
             peak, sums = scratch["peak"], scratch["sums"]
-            first, stop = self._alive.first[rows], self._alive.stop[rows]
             count = marginal_terms(joint, peak, EXP_ZERO_BELOW, first, stop, values, index)
-            marginal_sums(np.exp(values[:count]), index, first, stop, scratch["terms"], sums)
+            marginal_sums(np.exp(values[:count], out=exps[:count]), index, first, stop, scratch["terms"], sums)
             np.add(peak, np.log(sums), out=log_post)
         count = weight_terms(log_post, EXP_ZERO_BELOW, values, index)
         weights, mean = results["weights"][rows], results["mean"][rows]
-        posterior_moments(np.exp(values[:count]), index, a_nodes, weights, scratch["row"], mean,
+        posterior_moments(np.exp(values[:count], out=exps[:count]), index, a_nodes, weights, scratch["row"], mean,
                           results["spread"][rows])
-        posterior_vertex(log_post, joint, weights, a_nodes, mean, CONCENTRATED, results["estimate"][rows])
+        posterior_vertex(log_post, joint, weights, a_nodes, mean, CONCENTRATED, first, stop,
+                         results["estimate"][rows])
 
     def _scratch_for(self, rows: int) -> dict:
         """Work arrays of :meth:`_marginal_rows` for a block of ``rows`` sub-envs."""
         size = rows * self.nodes * self.k_nodes
-        return {"peak": np.empty((rows, self.nodes)), "sums": np.empty((rows, self.nodes)), "terms": np.empty(size),
-                "row": np.empty(self.nodes), "gather": (np.empty(size), np.empty(size, dtype=np.int64))}
+        return {"peak": np.empty((rows, self.nodes)), "sums": np.empty((rows, self.nodes)),
+                "terms": np.empty(self.k_nodes),
+                "row": np.empty(self.nodes), "gather": (np.empty(size), np.empty(size, dtype=np.int64)),
+                "exps": np.empty(size)}
 
     def _marginal(self) -> dict:
         """The results of :meth:`_marginal_rows` for every sub-env (``log_post``, ``weights``, ``mean``, ``spread``,

@@ -76,3 +76,39 @@ def test_vector_time_limit_follows_max_episode_steps():
     for _step in range(5):
         _, _, terminated, truncated, _ = native.step(np.zeros((2, 1)))
     assert truncated.all() and not terminated.any()
+
+
+def test_an_identification_step_in_two_threads_gives_the_one_kernel_step_and_survives_a_copy(monkeypatch):
+    # the simulator moves its plants and model bank in two blocks of sub-envs in two threads (core, _split_plants,
+    # from SPLIT_MIN_NODES bank models): the numbers of the one-kernel step (identification_step), and a pickled copy
+    # makes blocks of its own arrays (a pickled view would be an array no longer the copy's)
+    import pickle
+
+    from hyst_gym.envs import core as core_module
+
+    def make():
+        env = gymnasium.make_vec("hyst_gym/Identification-v0", num_envs=16, vectorization_mode="vector_entry_point")
+        env.reset(seed=5)
+        return env
+
+    def assert_same_bits(a, b):
+        for x, y in zip(a[:4], b[:4]):
+            assert x.tobytes() == y.tobytes()
+        for key in a[4]:
+            assert a[4][key].tobytes() == b[4][key].tobytes(), key
+
+    one = make()
+    monkeypatch.setattr(core_module, "SPLIT_MIN_NODES", 1)
+    monkeypatch.setattr(core_module, "step_threads", lambda: 2)
+    two = make()
+    assert not one.unwrapped.sim._plant_blocks and len(two.unwrapped.sim._plant_blocks) == 2
+    actions = random_actions(one.action_space, 120, seed=2)
+    for action in actions[:60]:
+        assert_same_bits(one.step(action), two.step(action))
+    copy = pickle.loads(pickle.dumps(two))
+    sim = copy.unwrapped.sim
+    assert np.shares_memory(sim._plant_blocks[1][1][0][0], sim.field)  # views of the copy's own arrays
+    for action in actions[60:]:
+        results = [env.step(action) for env in (one, two, copy)]
+        assert_same_bits(results[0], results[1])
+        assert_same_bits(results[0], results[2])

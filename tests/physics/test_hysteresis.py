@@ -272,6 +272,27 @@ def test_advance_shared_and_advance_each_agree_with_single_runs():
     np.testing.assert_array_equal(shared, simulate_batch(fields[:, 0], batch)[-1])
 
 
+@pytest.mark.parametrize("curve", ["ising", "langevin"])
+def test_the_bank_passes_give_the_one_model_midpoint_step_bit_for_bit(curve):
+    """advance_shared steps a bank in passes over its models (the curve, the half step, the curve, the full step);
+    advance_one holds one model's midpoint step in one expression chain: the same numbers, for both curves and for
+    banks with and without a remainder after the SIMD blocks."""
+    from hyst_gym.physics.hysteresis import advance_one
+
+    for size in (1, 7, 19, 200):
+        params = _random_bank(size, size)
+        batch = HysteresisBatch.stack([p.replace(anhysteretic=curve) for p in params])
+        kind = batch.kind
+        fields = np.concatenate([[0.0], np.cumsum(np.random.default_rng(size).normal(0, 4e4, 60))])
+        shared, single = np.zeros(batch.size), np.zeros(batch.size)
+        for h0, h1 in zip(fields[:-1], fields[1:]):
+            advance_shared(shared, h0, h1, batch.a, batch.k, batch.alpha, batch.Ms, batch.c, kind, 625.0)
+            for b in range(batch.size):
+                single[b] = advance_one(single[b], h0, h1, batch.a[b], batch.k[b], batch.alpha[b], batch.Ms[b],
+                                        batch.c[b], kind, 625.0)[0]
+            assert shared.tobytes() == single.tobytes(), (size, h0, h1)
+
+
 # --------------------------------------------------------------------------- small-loop extension
 
 from hyst_gym.physics.hysteresis import advance_shared_small_loop  # noqa: E402
