@@ -284,7 +284,9 @@ def _solve_linear_outputs(model, values, magnetization, noise, mask, pair):
     trial = dict(values, **{gain_name: 1.0, offset_name: 0.0})
     response = model.displacement(trial, magnetization)[mask]       # gain 1, M0 = 0
     unit = model.displacement(dict(trial, **{offset_name: 1.0}), magnetization)[mask]
-    offset_response = response - unit                                 # response to +1 in gain*M0
+    # unstable mechanics give infinite responses; the check below handles them (no warning for inf - inf)
+    with np.errstate(invalid="ignore", over="ignore"):
+        offset_response = response - unit                             # response to +1 in gain*M0
     design = np.column_stack([response, offset_response])
     if not np.all(np.isfinite(design)):
         return dict(values)  # mechanics unstable at these values: nothing to solve; scored as they are
