@@ -166,20 +166,21 @@ def finish_transducers(first, stop, plant, params):
         _finish_first_order(first, stop, plant, params)
         return
     for i in range(first, stop):
-        m0 = magnetization_prev[i]
-        m1 = magnetization[i]
-        if params.quadratic:
-            u0 = drive_gain * m0 * m0
-            u1 = drive_gain * m1 * m1
-        else:
-            u0 = drive_gain * m0
-            u1 = drive_gain * m1
+        u0 = _drive_forcing(magnetization_prev[i], drive_gain, params.quadratic)
+        u1 = _drive_forcing(magnetization[i], drive_gain, params.quadratic)
         lti_step(params.phi, params.gamma0, params.gamma1, state[i], u0, u1, state_next[i])
         for r in range(s):
             state[i, r] = state_next[i, r]
         measured[i, 0] = state[i, params.output_index]
         if params.velocity_index >= 0:
             measured[i, 1] = state[i, params.velocity_index]
+
+
+@njit(cache=True, inline="always")
+def _drive_forcing(m, drive_gain, quadratic):
+    """The transducer's forcing at magnetization ``m``: ``drive_gain*M^2`` for the quadratic law, else
+    ``drive_gain*M`` (the arithmetic of both finishing loops, in its order)."""
+    return drive_gain * m * m if quadratic else drive_gain * m
 
 
 @njit(cache=True, inline="always")
@@ -191,14 +192,8 @@ def _finish_first_order(first, stop, plant, params):
     magnetization, magnetization_prev = plant.magnetization, plant.magnetization_prev
     drive_gain, phi, gamma0, gamma1 = params.drive_gain, params.phi[0, 0], params.gamma0[0], params.gamma1[0]
     for i in range(first, stop):
-        m0 = magnetization_prev[i]
-        m1 = magnetization[i]
-        if params.quadratic:
-            u0 = drive_gain * m0 * m0
-            u1 = drive_gain * m1 * m1
-        else:
-            u0 = drive_gain * m0
-            u1 = drive_gain * m1
+        u0 = _drive_forcing(magnetization_prev[i], drive_gain, params.quadratic)
+        u1 = _drive_forcing(magnetization[i], drive_gain, params.quadratic)
         acc = gamma0 * u0 + gamma1 * u1
         acc += phi * state[i, 0]
         state_next[i, 0] = acc
